@@ -1,0 +1,771 @@
+/*
+ * att.c - the attitude estimator (see att.h; equations in docs/derivation.md).
+ */
+#include "att.h"
+
+#include <stddef.h>
+
+#include "att_gen.h"
+#include "att_model.h"
+
+const att_settings_t att_default_settings = {
+    /* process model */
+    .rate_walk = EKF_C(10.0),
+    .angle_walk = EKF_C(0.001),
+    .euler_rate_walk = EKF_C(0.05),
+    /* gyroscope */
+    .gyro_noise = EKF_C(0.005),
+    .gyro_gate = EKF_C(0.0),
+    .gyro_range = EKF_C(40.0),
+    /* accelerometer */
+    .gravity = EKF_C(9.81),
+    .accel_noise = EKF_C(0.5),
+    .accel_band = EKF_C(0.5),
+    .accel_reject = EKF_C(3.0),
+    .accel_gate = EKF_C(5.0),
+    .accel_range = EKF_C(160.0),
+    /* magnetometer */
+    .mag_heading_noise = EKF_C(0.1),
+    .mag_gate = EKF_C(5.0),
+    .mag_norm_tol = EKF_C(0.15),
+    .mag_dip_tol = EKF_C(0.17),
+    .mag_ref_norm = EKF_C(0.0),
+    .mag_ref_dip = EKF_C(0.0),
+    .mag_declination = EKF_C(0.0),
+    .mag_range = EKF_C(5000.0),
+    /* robustness */
+    .gate_timeout = EKF_C(1.0),
+    .gimbal_limit = EKF_C(1.4835298641951802), /* 85 deg */
+    .dt_max = EKF_C(0.5),
+    .heading_var_max = EKF_C(9.869604401089358), /* pi^2 */
+    .var_floor = EKF_C(1e-10),
+    /* initialisation */
+    .init_tilt_sigma = EKF_C(0.1),
+    .init_heading_sigma = EKF_C(0.2),
+    .init_rate_sigma = EKF_C(0.1),
+    .align_samples = 10u,
+};
+
+enum { SENSOR_GYRO = 0, SENSOR_ACCEL = 1, SENSOR_MAG = 2 };
+
+static void count(uint32_t *c)
+{
+    if (*c != UINT32_MAX) {
+        ++*c;
+    }
+}
+
+/* Counts a refused call in the diagnostics and passes the status through. */
+static ekf_status_t note(att_ekf_t *f, ekf_status_t st)
+{
+    if (st == EKF_ERR_NUMERIC) {
+        count(&f->diag.numeric);
+    } else if (st != EKF_OK && st != EKF_GATED && st != EKF_SKIPPED) {
+        count(&f->diag.rejected);
+    }
+    return st;
+}
+
+static int in_range(ekf_scalar_t v, ekf_scalar_t lo, ekf_scalar_t hi)
+{
+    return ekf_isfinite(v) && v >= lo && v <= hi;
+}
+
+ekf_status_t att_settings_check(const att_settings_t *s)
+{
+    const ekf_scalar_t big = EKF_C(1e6);
+    if (s == NULL) {
+        return EKF_ERR_NULL;
+    }
+    if (!in_range(s->rate_walk, EKF_C(1e-6), big) || !in_range(s->angle_walk, EKF_C(0), big) ||
+        !in_range(s->euler_rate_walk, EKF_C(1e-9), big) || !in_range(s->gyro_noise, EKF_C(1e-9), big) ||
+        !in_range(s->gyro_gate, EKF_C(0), big) || !in_range(s->gyro_range, EKF_C(1e-3), big) ||
+        !in_range(s->gravity, EKF_C(0.1), big) || !in_range(s->accel_noise, EKF_C(1e-9), big) ||
+        !in_range(s->accel_band, EKF_C(0), big) || !in_range(s->accel_reject, EKF_C(1e-6), big) ||
+        !in_range(s->accel_gate, EKF_C(0), big) || !in_range(s->accel_range, s->gravity, big) ||
+        !in_range(s->mag_heading_noise, EKF_C(1e-9), EKF_PI) || !in_range(s->mag_gate, EKF_C(0), big) ||
+        !in_range(s->mag_norm_tol, EKF_C(1e-6), big) || !in_range(s->mag_dip_tol, EKF_C(1e-6), EKF_PI) ||
+        !in_range(s->mag_ref_norm, EKF_C(0), big) ||
+        !in_range(s->mag_ref_dip, ekf_neg(EKF_HALF_PI), EKF_HALF_PI) ||
+        !in_range(s->mag_declination, ekf_neg(EKF_PI), EKF_PI) || !in_range(s->mag_range, EKF_C(1e-6), big) ||
+        !in_range(s->gate_timeout, EKF_C(0), big) ||
+        !in_range(s->gimbal_limit, EKF_C(0.1), EKF_C(1.5697963267948966)) || /* pi/2 - 1 mrad */
+        !in_range(s->dt_max, EKF_C(1e-6), EKF_C(60)) || !in_range(s->heading_var_max, EKF_C(1e-6), big) ||
+        !in_range(s->var_floor, EKF_C(1e-30), EKF_C(1e-2)) ||
+        !in_range(s->init_tilt_sigma, EKF_C(1e-6), EKF_PI) ||
+        !in_range(s->init_heading_sigma, EKF_C(1e-6), EKF_C(2) * EKF_PI) ||
+        !in_range(s->init_rate_sigma, EKF_C(1e-6), big) || s->align_samples == 0u) {
+        return EKF_ERR_SETTINGS;
+    }
+    return EKF_OK;
+}
+
+ekf_status_t att_init(att_ekf_t *f, const att_settings_t *settings)
+{
+    ekf_status_t st;
+    att_ekf_t zero = {0};
+    if (f == NULL) {
+        return EKF_ERR_NULL;
+    }
+    st = att_settings_check(settings);
+    if (st != EKF_OK) {
+        return st;
+    }
+    *f = zero;
+    f->settings = *settings;
+    return EKF_OK;
+}
+
+/* Finite, every component within +-range. */
+static ekf_status_t check_vec(const ekf_scalar_t v[3], ekf_scalar_t range)
+{
+    int i;
+    if (v == NULL) {
+        return EKF_ERR_NULL;
+    }
+    for (i = 0; i < 3; ++i) {
+        if (!ekf_isfinite(v[i])) {
+            return EKF_ERR_NOT_FINITE;
+        }
+    }
+    for (i = 0; i < 3; ++i) {
+        if (ekf_abs(v[i]) > range) {
+            return EKF_ERR_RANGE;
+        }
+    }
+    return EKF_OK;
+}
+
+static ekf_status_t check_dt(const att_ekf_t *f, ekf_scalar_t dt)
+{
+    if (!ekf_isfinite(dt)) {
+        return EKF_ERR_NOT_FINITE;
+    }
+    if (!(dt > EKF_C(0))) {
+        return EKF_ERR_DT_NONPOSITIVE;
+    }
+    if (dt > f->settings.dt_max) {
+        return EKF_ERR_DT_TOO_LARGE;
+    }
+    return EKF_OK;
+}
+
+static ekf_scalar_t norm3(const ekf_scalar_t v[3])
+{
+    return ekf_sqrt(ekf_add(ekf_add(ekf_sq(v[0]), ekf_sq(v[1])), ekf_sq(v[2])));
+}
+
+/* Trigonometry for the measurement functions: the true (unclamped) pitch. They use only
+ * sin and cos, never sec(theta), which is left at zero. */
+static void meas_trig(const att_ekf_t *f, att_trig_t *t)
+{
+    t->sphi = ekf_sin(f->x[ATT_PHI]);
+    t->cphi = ekf_cos(f->x[ATT_PHI]);
+    t->sth = ekf_sin(f->x[ATT_THETA]);
+    t->cth = ekf_cos(f->x[ATT_THETA]);
+    t->secth = EKF_C(0);
+}
+
+/* P += var * G G^T for the body-rate noise input, G = [I; 0; g] with g the 3x3 Euler-rate
+ * block (row-major). Symmetric by construction. */
+static void add_rate_noise(ekf_scalar_t P[ATT_N * ATT_N], const ekf_scalar_t g[9], ekf_scalar_t var)
+{
+    int i, j, k;
+    for (i = 0; i < 3; ++i) {
+        P[(ATT_P + i) * ATT_N + ATT_P + i] = ekf_add(P[(ATT_P + i) * ATT_N + ATT_P + i], var);
+        for (j = 0; j < 3; ++j) {
+            /* (Euler rate i, body rate j) = var * g[i][j], and its mirror */
+            const ekf_scalar_t v = ekf_mul(var, g[i * 3 + j]);
+            P[(ATT_PHID + i) * ATT_N + ATT_P + j] = ekf_add(P[(ATT_PHID + i) * ATT_N + ATT_P + j], v);
+            P[(ATT_P + j) * ATT_N + ATT_PHID + i] = ekf_add(P[(ATT_P + j) * ATT_N + ATT_PHID + i], v);
+        }
+        for (j = i; j < 3; ++j) {
+            ekf_scalar_t ggt = EKF_C(0);
+            for (k = 0; k < 3; ++k) {
+                ggt = ekf_mac(ggt, g[i * 3 + k], g[j * 3 + k]);
+            }
+            ggt = ekf_mul(var, ggt);
+            P[(ATT_PHID + i) * ATT_N + ATT_PHID + j] = ekf_add(P[(ATT_PHID + i) * ATT_N + ATT_PHID + j], ggt);
+            if (j != i) {
+                P[(ATT_PHID + j) * ATT_N + ATT_PHID + i] = P[(ATT_PHID + i) * ATT_N + ATT_PHID + j];
+            }
+        }
+    }
+}
+
+static void add_diag(ekf_scalar_t P[ATT_N * ATT_N], int first, int len, ekf_scalar_t var)
+{
+    int i;
+    for (i = first; i < first + len; ++i) {
+        P[i * ATT_N + i] = ekf_add(P[i * ATT_N + i], var);
+    }
+}
+
+/* Heading of a levelled field vector (att_gen_mag_level), rad in [-pi, pi). */
+static ekf_scalar_t mag_heading(const att_ekf_t *f, const ekf_scalar_t lev[3])
+{
+    return ekf_wrap_pi(ekf_sub(ekf_atan2(lev[0], lev[1]), f->settings.mag_declination));
+}
+
+/* Dip of a levelled field vector, rad, positive when the field points down. */
+static ekf_scalar_t mag_dip(const ekf_scalar_t lev[3])
+{
+    return ekf_atan2(ekf_neg(lev[2]), ekf_sqrt(ekf_add(ekf_sq(lev[0]), ekf_sq(lev[1]))));
+}
+
+static void update_gimbal_flag(att_ekf_t *f)
+{
+    if (ekf_abs(f->x[ATT_THETA]) > f->settings.gimbal_limit) {
+        f->flags |= ATT_FLAG_GIMBAL_LOCK;
+    } else {
+        f->flags &= ~ATT_FLAG_GIMBAL_LOCK;
+    }
+}
+
+ekf_status_t att_align(att_ekf_t *f, const ekf_scalar_t accel[3], const ekf_scalar_t mag[3])
+{
+    const att_settings_t *s;
+    ekf_scalar_t x[ATT_N] = {0};
+    att_trig_t t;
+    ekf_scalar_t g[9];
+    ekf_scalar_t lev[3];
+    ekf_scalar_t heading_var;
+    ekf_status_t st;
+    int i, use_mag = 0;
+
+    if (f == NULL) {
+        return EKF_ERR_NULL;
+    }
+    s = &f->settings;
+    st = check_vec(accel, s->accel_range);
+    if (st != EKF_OK) {
+        return note(f, st);
+    }
+    if (!(norm3(accel) > EKF_C(0.1) * s->gravity)) {
+        return note(f, EKF_ERR_RANGE); /* no usable gravity direction (free fall) */
+    }
+    if (mag != NULL) {
+        st = check_vec(mag, s->mag_range);
+        if (st != EKF_OK) {
+            return note(f, st);
+        }
+    }
+
+    /* roll and pitch from the gravity direction: a = g (-sin th, sin ph cos th, cos ph cos th) */
+    x[ATT_PHI] = ekf_atan2(accel[1], accel[2]);
+    x[ATT_THETA] = ekf_atan2(ekf_neg(accel[0]), ekf_sqrt(ekf_add(ekf_sq(accel[1]), ekf_sq(accel[2]))));
+    (void)att_trig(x[ATT_PHI], x[ATT_THETA], s->gimbal_limit, &t);
+    heading_var = s->heading_var_max;
+    if (mag != NULL && norm3(mag) > EKF_C(0)) {
+        att_gen_mag_level(&t, mag, lev);
+        if (ekf_add(ekf_sq(lev[0]), ekf_sq(lev[1])) > EKF_C(0)) {
+            use_mag = 1;
+            x[ATT_PSI] = mag_heading(f, lev);
+            heading_var = ekf_min(ekf_sq(s->init_heading_sigma), s->heading_var_max);
+        }
+    }
+
+    for (i = 0; i < ATT_N; ++i) {
+        f->x[i] = x[i];
+    }
+    for (i = 0; i < ATT_N * ATT_N; ++i) {
+        f->P[i] = EKF_C(0);
+    }
+    f->P[ATT_PHI * ATT_N + ATT_PHI] = ekf_sq(s->init_tilt_sigma);
+    f->P[ATT_THETA * ATT_N + ATT_THETA] = ekf_sq(s->init_tilt_sigma);
+    f->P[ATT_PSI * ATT_N + ATT_PSI] = heading_var;
+    /* rates: zero with the rate uncertainty mapped into the Euler rates, plus an
+     * independent 10 % part so that P starts positive definite */
+    att_gen_noise_jacobian(&t, g);
+    add_rate_noise(f->P, g, ekf_sq(s->init_rate_sigma));
+    add_diag(f->P, ATT_PHID, 3, ekf_mul(EKF_C(0.01), ekf_sq(s->init_rate_sigma)));
+
+    if (s->mag_ref_norm > EKF_C(0)) {
+        f->mag_ref_norm = s->mag_ref_norm;
+        f->mag_ref_dip = s->mag_ref_dip;
+    } else if (use_mag) {
+        f->mag_ref_norm = norm3(mag);
+        f->mag_ref_dip = mag_dip(lev);
+    } else {
+        f->mag_ref_norm = EKF_C(0);
+        f->mag_ref_dip = EKF_C(0);
+    }
+    for (i = 0; i < 3; ++i) {
+        f->gated_time[i] = EKF_C(0);
+    }
+    f->flags = ATT_FLAG_ALIGNED;
+    if (!use_mag) {
+        f->flags |= ATT_FLAG_HEADING_LIMITED;
+    }
+    update_gimbal_flag(f);
+    return EKF_OK;
+}
+
+/* Keeps every variance below a physical bound (docs/derivation.md, "Covariance bounds"):
+ * body rates within the gyro range, roll and pitch within half a turn, Euler rates within
+ * what W can produce from in-range body rates at the gimbal limit. Only reached under
+ * inputs far outside normal use (very long steps at extreme rates), where it keeps P
+ * finite; a congruence, so P stays positive definite. */
+static void limit_variances(att_ekf_t *f)
+{
+    const att_settings_t *s = &f->settings;
+    const ekf_scalar_t rate_max = ekf_sq(s->gyro_range);
+    const ekf_scalar_t sec_lim = ekf_div(EKF_C(1), ekf_cos(s->gimbal_limit));
+    const ekf_scalar_t euler_rate_max = ekf_sq(ekf_mul(s->gyro_range, ekf_add(EKF_C(1), ekf_mul(EKF_C(2), sec_lim))));
+    int i;
+    for (i = 0; i < 3; ++i) {
+        (void)ekf_cov_limit_variance(f->P, ATT_N, (uint8_t)(ATT_P + i), rate_max);
+        (void)ekf_cov_limit_variance(f->P, ATT_N, (uint8_t)(ATT_PHID + i), euler_rate_max);
+    }
+    (void)ekf_cov_limit_variance(f->P, ATT_N, ATT_PHI, ekf_sq(EKF_PI));
+    (void)ekf_cov_limit_variance(f->P, ATT_N, ATT_THETA, ekf_sq(EKF_HALF_PI));
+}
+
+ekf_status_t att_predict(att_ekf_t *f, ekf_scalar_t dt)
+{
+    const att_settings_t *s;
+    ekf_scalar_t xn[ATT_N];
+    ekf_scalar_t d[ATT_GEN_F_NNZ];
+    ekf_scalar_t work[6 * ATT_N]; /* rows PHI..PSID of F differ from the identity */
+    ekf_scalar_t g[9];
+    att_trig_t tn;
+    ekf_status_t st;
+    int i;
+
+    if (f == NULL) {
+        return EKF_ERR_NULL;
+    }
+    if ((f->flags & ATT_FLAG_ALIGNED) == 0u) {
+        return note(f, EKF_ERR_NOT_INITIALISED);
+    }
+    s = &f->settings;
+    st = check_dt(f, dt);
+    if (st != EKF_OK) {
+        return note(f, st);
+    }
+
+    att_model_transition(f->x, NULL, dt, s->gimbal_limit, xn, &tn);
+    if (!ekf_all_finite(xn, ATT_N)) {
+        return note(f, EKF_ERR_NUMERIC);
+    }
+    att_gen_transition_jacobian(&tn, f->x, dt, d);
+    st = ekf_cov_propagate(f->P, ATT_N, att_gen_f_pattern, d, ATT_GEN_F_NNZ, work,
+                           (uint16_t)(sizeof work / sizeof work[0]));
+    if (st != EKF_OK) {
+        return note(f, st == EKF_ERR_NOT_FINITE ? EKF_ERR_NUMERIC : st);
+    }
+
+    /* Q = G diag(rate_walk^2 dt) G^T + angle and Euler-rate random walks */
+    att_gen_noise_jacobian(&tn, g);
+    add_rate_noise(f->P, g, ekf_mul(ekf_sq(s->rate_walk), dt));
+    add_diag(f->P, ATT_PHI, 3, ekf_mul(ekf_sq(s->angle_walk), dt));
+    add_diag(f->P, ATT_PHID, 3, ekf_mul(ekf_sq(s->euler_rate_walk), dt));
+
+    for (i = 0; i < ATT_N; ++i) {
+        f->x[i] = xn[i];
+    }
+    f->flags &= ~ATT_FLAG_REMAPPED;
+    if (att_model_normalise(f->x, f->P)) {
+        f->flags |= ATT_FLAG_REMAPPED;
+        count(&f->diag.remaps);
+    }
+    update_gimbal_flag(f);
+    limit_variances(f);
+    if (ekf_cov_limit_variance(f->P, ATT_N, ATT_PSI, s->heading_var_max) ||
+        !(f->P[ATT_PSI * ATT_N + ATT_PSI] < s->heading_var_max)) {
+        f->flags |= ATT_FLAG_HEADING_LIMITED;
+    } else {
+        f->flags &= ~ATT_FLAG_HEADING_LIMITED;
+    }
+    /* time bookkeeping for the gate timeouts */
+    for (i = 0; i < 3; ++i) {
+        if (f->gated_time[i] > EKF_C(0)) {
+            f->gated_time[i] = ekf_add(f->gated_time[i], dt);
+        }
+    }
+    return EKF_OK;
+}
+
+/* Gate of a sensor: its setting, or 0 (off) once it has gated continuously for longer
+ * than gate_timeout. A filter that has drifted away from a sensor would otherwise reject
+ * it forever. */
+static ekf_scalar_t gate_for(att_ekf_t *f, int sensor, ekf_scalar_t gate)
+{
+    const ekf_scalar_t timeout = f->settings.gate_timeout;
+    if (gate > EKF_C(0) && timeout > EKF_C(0) && f->gated_time[sensor] > timeout) {
+        f->flags |= ATT_FLAG_GATE_BYPASS;
+        return EKF_C(0);
+    }
+    return gate;
+}
+
+/* Records whether a sensor's update gated (starts the gate clock) or passed (stops it). */
+static void gate_result(att_ekf_t *f, int sensor, int gated)
+{
+    if (gated) {
+        if (!(f->gated_time[sensor] > EKF_C(0))) {
+            f->gated_time[sensor] = EKF_SCALAR_EPS; /* running; att_predict adds dt */
+        }
+    } else {
+        f->gated_time[sensor] = EKF_C(0);
+        if (!(f->gated_time[SENSOR_GYRO] > f->settings.gate_timeout) &&
+            !(f->gated_time[SENSOR_ACCEL] > f->settings.gate_timeout) &&
+            !(f->gated_time[SENSOR_MAG] > f->settings.gate_timeout)) {
+            f->flags &= ~ATT_FLAG_GATE_BYPASS;
+        }
+    }
+}
+
+ekf_status_t att_update_gyro(att_ekf_t *f, const ekf_scalar_t gyro[3])
+{
+    static const ekf_scalar_t one = EKF_C(1);
+    ekf_scalar_t gate, r_var;
+    ekf_status_t st;
+    ekf_innov_t info;
+    int i, gated = 0;
+
+    if (f == NULL) {
+        return EKF_ERR_NULL;
+    }
+    if ((f->flags & ATT_FLAG_ALIGNED) == 0u) {
+        return note(f, EKF_ERR_NOT_INITIALISED);
+    }
+    st = check_vec(gyro, f->settings.gyro_range);
+    if (st != EKF_OK) {
+        return note(f, st);
+    }
+    gate = gate_for(f, SENSOR_GYRO, f->settings.gyro_gate);
+    r_var = ekf_sq(f->settings.gyro_noise);
+    for (i = 0; i < 3; ++i) {
+        const uint8_t idx = (uint8_t)(ATT_P + i);
+        const ekf_hrow_t h = {&idx, &one, 1u};
+        st = ekf_update_scalar(f->x, f->P, ATT_N, &h, ekf_sub(gyro[i], f->x[ATT_P + i]), r_var, gate,
+                               f->settings.var_floor, &info);
+        f->diag.gyro_ratio[i] = info.test_ratio;
+        if (st == EKF_GATED) {
+            gated = 1;
+            count(&f->diag.gyro_gated);
+        } else if (st != EKF_OK) {
+            return note(f, st);
+        } else {
+            count(&f->diag.gyro_fused);
+        }
+    }
+    gate_result(f, SENSOR_GYRO, gated);
+    if (gated) {
+        f->flags |= ATT_FLAG_GYRO_GATED;
+        return EKF_GATED;
+    }
+    f->flags &= ~ATT_FLAG_GYRO_GATED;
+    return EKF_OK;
+}
+
+ekf_status_t att_update_accel(att_ekf_t *f, const ekf_scalar_t accel[3])
+{
+    const att_settings_t *s;
+    ekf_scalar_t norm, err, r_var, gate, phi0, theta0;
+    ekf_scalar_t h[3], hj[6];
+    att_trig_t t;
+    ekf_status_t st;
+    ekf_innov_t info;
+    static const uint8_t idx[2] = {ATT_PHI, ATT_THETA};
+    int i, gated = 0;
+
+    if (f == NULL) {
+        return EKF_ERR_NULL;
+    }
+    if ((f->flags & ATT_FLAG_ALIGNED) == 0u) {
+        return note(f, EKF_ERR_NOT_INITIALISED);
+    }
+    s = &f->settings;
+    st = check_vec(accel, s->accel_range);
+    if (st != EKF_OK) {
+        return note(f, st);
+    }
+    norm = norm3(accel);
+    err = ekf_abs(ekf_sub(norm, s->gravity));
+    f->diag.accel_norm_error = err;
+    f->flags &= ~(ATT_FLAG_ACCEL_DEWEIGHTED | ATT_FLAG_ACCEL_REJECTED | ATT_FLAG_ACCEL_GATED);
+    if (err > s->accel_reject || !(norm > EKF_C(0))) {
+        /* far from 1 g: the direction is dominated by linear acceleration */
+        f->flags |= ATT_FLAG_ACCEL_REJECTED;
+        count(&f->diag.accel_skipped);
+        return EKF_SKIPPED;
+    }
+    /* unit-vector measurement; variance (accel_noise / g)^2, inflated by
+     * 1 + (err / accel_band)^2 under linear acceleration */
+    r_var = ekf_sq(ekf_div(s->accel_noise, s->gravity));
+    if (s->accel_band > EKF_C(0)) {
+        const ekf_scalar_t k = ekf_div(err, s->accel_band);
+        r_var = ekf_mul(r_var, ekf_add(EKF_C(1), ekf_sq(k)));
+        if (k > EKF_C(1)) {
+            f->flags |= ATT_FLAG_ACCEL_DEWEIGHTED;
+        }
+    }
+    gate = gate_for(f, SENSOR_ACCEL, s->accel_gate);
+
+    /* h and H at the prior; the three components are fused sequentially with innovations
+     * relinearised about the prior, which equals the batch update of the 3-vector
+     * (docs/derivation.md, "Sequential vector updates") */
+    meas_trig(f, &t);
+    att_gen_accel_h(&t, h);
+    att_gen_accel_jacobian(&t, hj);
+    phi0 = f->x[ATT_PHI];
+    theta0 = f->x[ATT_THETA];
+    for (i = 0; i < 3; ++i) {
+        const ekf_hrow_t hr = {idx, &hj[2 * i], 2u};
+        ekf_scalar_t nu = ekf_sub(ekf_div(accel[i], norm), h[i]);
+        nu = ekf_sub(nu, ekf_mul(hj[2 * i], ekf_sub(f->x[ATT_PHI], phi0)));
+        nu = ekf_sub(nu, ekf_mul(hj[2 * i + 1], ekf_sub(f->x[ATT_THETA], theta0)));
+        st = ekf_update_scalar(f->x, f->P, ATT_N, &hr, nu, r_var, gate, s->var_floor, &info);
+        f->diag.accel_ratio[i] = info.test_ratio;
+        if (st == EKF_GATED) {
+            gated = 1;
+            count(&f->diag.accel_gated);
+        } else if (st != EKF_OK) {
+            (void)att_model_normalise(f->x, f->P);
+            return note(f, st);
+        } else {
+            count(&f->diag.accel_fused);
+        }
+    }
+    if (att_model_normalise(f->x, f->P)) {
+        count(&f->diag.remaps);
+    }
+    update_gimbal_flag(f);
+    gate_result(f, SENSOR_ACCEL, gated);
+    if (gated) {
+        f->flags |= ATT_FLAG_ACCEL_GATED;
+        return EKF_GATED;
+    }
+    return EKF_OK;
+}
+
+/* Heading row and column reset: psi <- heading, Var(psi) <- var, no correlation. Keeps P
+ * positive semi-definite (a principal block plus a positive diagonal entry). */
+static void reset_heading(att_ekf_t *f, ekf_scalar_t heading, ekf_scalar_t var)
+{
+    int j;
+    for (j = 0; j < ATT_N; ++j) {
+        f->P[ATT_PSI * ATT_N + j] = EKF_C(0);
+        f->P[j * ATT_N + ATT_PSI] = EKF_C(0);
+    }
+    f->P[ATT_PSI * ATT_N + ATT_PSI] = var;
+    f->x[ATT_PSI] = heading;
+}
+
+ekf_status_t att_update_mag(att_ekf_t *f, const ekf_scalar_t mag[3])
+{
+    static const uint8_t idx = ATT_PSI;
+    static const ekf_scalar_t one = EKF_C(1);
+    const ekf_hrow_t hr = {&idx, &one, 1u};
+    const att_settings_t *s;
+    ekf_scalar_t lev[3], norm, heading, nu;
+    att_trig_t t;
+    ekf_status_t st;
+    ekf_innov_t info;
+
+    if (f == NULL) {
+        return EKF_ERR_NULL;
+    }
+    if ((f->flags & ATT_FLAG_ALIGNED) == 0u) {
+        return note(f, EKF_ERR_NOT_INITIALISED);
+    }
+    s = &f->settings;
+    st = check_vec(mag, s->mag_range);
+    if (st != EKF_OK) {
+        return note(f, st);
+    }
+    f->flags &= ~(ATT_FLAG_MAG_DISTURBED | ATT_FLAG_HEADING_HELD | ATT_FLAG_MAG_GATED);
+    if ((f->flags & ATT_FLAG_GIMBAL_LOCK) != 0u) {
+        /* heading is ill-defined next to theta = +-90 deg: hold it */
+        f->flags |= ATT_FLAG_HEADING_HELD;
+        count(&f->diag.mag_skipped);
+        return EKF_SKIPPED;
+    }
+    norm = norm3(mag);
+    meas_trig(f, &t);
+    att_gen_mag_level(&t, mag, lev);
+    if (!(ekf_sqrt(ekf_add(ekf_sq(lev[0]), ekf_sq(lev[1]))) > EKF_C(1e-3) * norm)) {
+        /* no horizontal component (or no field at all): no heading information */
+        f->flags |= ATT_FLAG_MAG_DISTURBED;
+        count(&f->diag.mag_skipped);
+        return EKF_SKIPPED;
+    }
+    heading = mag_heading(f, lev);
+    if (!(f->mag_ref_norm > EKF_C(0))) {
+        /* aligned without a magnetometer: the first field sample sets the reference and
+         * the heading */
+        f->mag_ref_norm = norm;
+        f->mag_ref_dip = mag_dip(lev);
+        reset_heading(f, heading, ekf_min(ekf_sq(s->init_heading_sigma), s->heading_var_max));
+        f->flags &= ~ATT_FLAG_HEADING_LIMITED;
+        count(&f->diag.mag_fused);
+        return EKF_OK;
+    }
+    f->diag.mag_norm_error = ekf_sub(ekf_div(norm, f->mag_ref_norm), EKF_C(1));
+    f->diag.mag_dip_error = ekf_sub(mag_dip(lev), f->mag_ref_dip);
+    if (ekf_abs(f->diag.mag_norm_error) > s->mag_norm_tol || ekf_abs(f->diag.mag_dip_error) > s->mag_dip_tol) {
+        f->flags |= ATT_FLAG_MAG_DISTURBED;
+        count(&f->diag.mag_skipped);
+        return EKF_SKIPPED;
+    }
+    nu = ekf_wrap_pi(ekf_sub(heading, f->x[ATT_PSI]));
+    st = ekf_update_scalar(f->x, f->P, ATT_N, &hr, nu, ekf_sq(s->mag_heading_noise),
+                           gate_for(f, SENSOR_MAG, s->mag_gate), s->var_floor, &info);
+    f->diag.mag_ratio = info.test_ratio;
+    if (st == EKF_GATED) {
+        count(&f->diag.mag_gated);
+        gate_result(f, SENSOR_MAG, 1);
+        f->flags |= ATT_FLAG_MAG_GATED;
+        return EKF_GATED;
+    }
+    if (st != EKF_OK) {
+        return note(f, st);
+    }
+    count(&f->diag.mag_fused);
+    gate_result(f, SENSOR_MAG, 0);
+    (void)att_model_normalise(f->x, f->P);
+    return EKF_OK;
+}
+
+/* Alignment phase of att_step: average accelerometer (and magnetometer) samples. */
+static ekf_status_t align_step(att_ekf_t *f, const att_sample_t *sm, att_step_report_t *rep)
+{
+    const att_settings_t *s = &f->settings;
+    ekf_status_t st;
+    int i;
+    if ((sm->valid & ATT_HAS_ACCEL) == 0u) {
+        rep->accel = note(f, EKF_ERR_NOT_INITIALISED);
+        return rep->accel;
+    }
+    st = check_vec(sm->accel, s->accel_range);
+    if (st != EKF_OK) {
+        rep->accel = note(f, st);
+        return st;
+    }
+    if ((sm->valid & ATT_HAS_MAG) != 0u) {
+        rep->mag = check_vec(sm->mag, s->mag_range);
+        if (rep->mag == EKF_OK) {
+            for (i = 0; i < 3; ++i) {
+                f->align_mag[i] = ekf_add(f->align_mag[i], sm->mag[i]);
+            }
+            ++f->align_mag_count;
+        } else {
+            (void)note(f, rep->mag);
+        }
+    }
+    for (i = 0; i < 3; ++i) {
+        f->align_acc[i] = ekf_add(f->align_acc[i], sm->accel[i]);
+    }
+    ++f->align_count;
+    if (f->align_count < s->align_samples) {
+        return EKF_OK;
+    }
+    {
+        ekf_scalar_t acc[3], mag[3];
+        const ekf_scalar_t na = EKF_C(f->align_count);
+        const ekf_scalar_t nm = EKF_C(f->align_mag_count);
+        for (i = 0; i < 3; ++i) {
+            acc[i] = ekf_div(f->align_acc[i], na);
+            mag[i] = (f->align_mag_count > 0u) ? ekf_div(f->align_mag[i], nm) : EKF_C(0);
+            f->align_acc[i] = EKF_C(0);
+            f->align_mag[i] = EKF_C(0);
+        }
+        f->align_count = 0u;
+        st = att_align(f, acc, (f->align_mag_count > 0u) ? mag : NULL);
+        f->align_mag_count = 0u;
+        rep->accel = st;
+        if (st == EKF_OK && (sm->valid & ATT_HAS_GYRO) != 0u && check_vec(sm->gyro, s->gyro_range) == EKF_OK) {
+            rep->gyro = att_update_gyro(f, sm->gyro);
+        }
+    }
+    return st;
+}
+
+ekf_status_t att_step(att_ekf_t *f, const att_sample_t *sample, att_step_report_t *report)
+{
+    att_step_report_t local;
+    att_step_report_t *rep = (report != NULL) ? report : &local;
+    ekf_status_t st;
+
+    rep->predict = EKF_OK;
+    rep->gyro = EKF_OK;
+    rep->accel = EKF_OK;
+    rep->mag = EKF_OK;
+    if (f == NULL || sample == NULL) {
+        return EKF_ERR_NULL;
+    }
+    if ((f->flags & ATT_FLAG_ALIGNED) == 0u) {
+        return align_step(f, sample, rep);
+    }
+    st = check_dt(f, sample->dt);
+    if (st != EKF_OK) {
+        rep->predict = note(f, st);
+        return st;
+    }
+    /* The gyro sample describes the rotation over the interval ending now: fuse it
+     * before propagating, so the angles integrate it (docs/derivation.md, "Step order"). */
+    if ((sample->valid & ATT_HAS_GYRO) != 0u) {
+        rep->gyro = att_update_gyro(f, sample->gyro);
+    }
+    rep->predict = att_predict(f, sample->dt);
+    if (rep->predict == EKF_OK) {
+        count(&f->diag.steps);
+    }
+    if ((sample->valid & ATT_HAS_ACCEL) != 0u) {
+        rep->accel = att_update_accel(f, sample->accel);
+    }
+    if ((sample->valid & ATT_HAS_MAG) != 0u) {
+        rep->mag = att_update_mag(f, sample->mag);
+    }
+    if (rep->predict != EKF_OK) {
+        return rep->predict;
+    }
+    if (rep->gyro != EKF_OK) {
+        return rep->gyro;
+    }
+    if (rep->accel != EKF_OK) {
+        return rep->accel;
+    }
+    return rep->mag;
+}
+
+void att_get_euler(const att_ekf_t *f, ekf_scalar_t euler[3])
+{
+    euler[0] = f->x[ATT_PHI];
+    euler[1] = f->x[ATT_THETA];
+    euler[2] = f->x[ATT_PSI];
+}
+
+void att_get_body_rates(const att_ekf_t *f, ekf_scalar_t w[3])
+{
+    w[0] = f->x[ATT_P];
+    w[1] = f->x[ATT_Q];
+    w[2] = f->x[ATT_R];
+}
+
+void att_get_euler_rates(const att_ekf_t *f, ekf_scalar_t e[3])
+{
+    e[0] = f->x[ATT_PHID];
+    e[1] = f->x[ATT_THETAD];
+    e[2] = f->x[ATT_PSID];
+}
+
+void att_get_quaternion(const att_ekf_t *f, ekf_scalar_t q[4])
+{
+    att_model_euler_to_quat(f->x[ATT_PHI], f->x[ATT_THETA], f->x[ATT_PSI], q);
+}
+
+void att_get_variances(const att_ekf_t *f, ekf_scalar_t var[ATT_N])
+{
+    int i;
+    for (i = 0; i < ATT_N; ++i) {
+        var[i] = f->P[i * ATT_N + i];
+    }
+}
+
+const ekf_scalar_t *att_state(const att_ekf_t *f) { return f->x; }
+const ekf_scalar_t *att_covariance(const att_ekf_t *f) { return f->P; }
+uint32_t att_flags(const att_ekf_t *f) { return f->flags; }
+const att_diag_t *att_diag(const att_ekf_t *f) { return &f->diag; }

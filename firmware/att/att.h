@@ -1,0 +1,186 @@
+/*
+ * att.h - attitude estimator: the 9-state EKF (gyro, accelerometer, magnetometer).
+ *
+ * Usage:
+ *     att_ekf_t ekf;                              caller owns the memory (static or stack)
+ *     att_init(&ekf, &att_default_settings);      or a modified copy of the defaults
+ *     for each IMU sample:
+ *         att_sample_t s = { .dt = ..., .gyro = ..., .accel = ..., .valid = ... };
+ *         att_step(&ekf, &s, NULL);
+ *         att_get_euler(&ekf, euler);             rad; att_get_quaternion for (w,x,y,z)
+ *
+ * The first samples with an accelerometer reading align the filter (roll and pitch from
+ * gravity, heading from the magnetometer when there is one); att_step then runs
+ *     gyro update -> predict(dt) -> accelerometer update -> magnetometer update
+ * (docs/derivation.md, "Step order"). The individual stages are public too.
+ *
+ * Units: SI inside (rad, rad/s, m/s^2, s); the magnetometer in any unit (uT suggested),
+ * used consistently with mag_range and mag_ref_norm. Frames: body to ENU (att_defs.h).
+ *
+ * Every function validates its input; an error leaves the filter exactly as it was and is
+ * counted in att_diag_t. The filter never stores NaN or Inf.
+ */
+#ifndef ATT_H
+#define ATT_H
+
+#include <stdint.h>
+
+#include "att_defs.h"
+#include "ekf.h"
+
+/* Settings: every tunable, with its unit. att_default_settings holds the defaults. */
+typedef struct {
+    /* process model */
+    ekf_scalar_t rate_walk;       /* body-rate random walk, rad/s/sqrt(s): Var(dw) = rate_walk^2 dt */
+    ekf_scalar_t angle_walk;      /* extra angle random walk, rad/sqrt(s) (model error) */
+    ekf_scalar_t euler_rate_walk; /* independent Euler-rate noise, rad/s/sqrt(s); > 0 keeps P
+                                     positive definite (docs/derivation.md) */
+    /* gyroscope */
+    ekf_scalar_t gyro_noise; /* white noise, 1 sigma per sample, rad/s */
+    ekf_scalar_t gyro_gate;  /* innovation gate, sigmas; 0 = off */
+    ekf_scalar_t gyro_range; /* |component| above this is EKF_ERR_RANGE, rad/s */
+    /* accelerometer */
+    ekf_scalar_t gravity;       /* magnitude of gravity, m/s^2 */
+    ekf_scalar_t accel_noise;   /* white noise incl. unmodelled motion, 1 sigma per axis, m/s^2 */
+    ekf_scalar_t accel_band;    /* | |a| - g | at which the noise variance is doubled, m/s^2
+                                   (de-weighting under linear acceleration); 0 = off */
+    ekf_scalar_t accel_reject;  /* | |a| - g | above which the sample is not fused, m/s^2 */
+    ekf_scalar_t accel_gate;    /* innovation gate, sigmas; 0 = off */
+    ekf_scalar_t accel_range;   /* |component| above this is EKF_ERR_RANGE, m/s^2 */
+    /* magnetometer (heading, tilt-compensated) */
+    ekf_scalar_t mag_heading_noise; /* 1 sigma of the magnetic heading, rad */
+    ekf_scalar_t mag_gate;          /* innovation gate, sigmas; 0 = off */
+    ekf_scalar_t mag_norm_tol;      /* allowed | |m| / ref - 1 |, fraction; larger: disturbed */
+    ekf_scalar_t mag_dip_tol;       /* allowed |dip - ref dip|, rad; larger: disturbed */
+    ekf_scalar_t mag_ref_norm;      /* reference field norm (mag units); 0 = learn at alignment */
+    ekf_scalar_t mag_ref_dip;       /* reference dip, rad, positive down; used if mag_ref_norm > 0 */
+    ekf_scalar_t mag_declination;   /* magnetic declination, rad, east positive */
+    ekf_scalar_t mag_range;         /* |component| above this is EKF_ERR_RANGE (mag units) */
+    /* robustness */
+    ekf_scalar_t gate_timeout;  /* s of continuous gating of one sensor after which its gate
+                                   is bypassed until a fusion passes again; 0 = never */
+    ekf_scalar_t gimbal_limit;  /* |theta| above this (rad, < pi/2): kinematics clamped,
+                                   heading held, ATT_FLAG_GIMBAL_LOCK */
+    ekf_scalar_t dt_max;        /* longest accepted time step, s */
+    ekf_scalar_t heading_var_max; /* cap on the heading variance, rad^2 (unobserved heading) */
+    ekf_scalar_t var_floor;     /* floor of every state variance, rad^2 or (rad/s)^2 */
+    /* initialisation */
+    ekf_scalar_t init_tilt_sigma;    /* rad */
+    ekf_scalar_t init_heading_sigma; /* rad, with magnetometer (without: sqrt(heading_var_max)) */
+    ekf_scalar_t init_rate_sigma;    /* rad/s */
+    uint16_t align_samples;          /* accelerometer samples averaged for the alignment, >= 1 */
+} att_settings_t;
+
+extern const att_settings_t att_default_settings;
+
+/* Status flags (att_flags()). "last" means the most recent sample of that sensor. */
+#define ATT_FLAG_ALIGNED          (1u << 0)  /* initial attitude set */
+#define ATT_FLAG_GIMBAL_LOCK      (1u << 1)  /* |theta| > gimbal_limit */
+#define ATT_FLAG_ACCEL_DEWEIGHTED (1u << 2)  /* last accel: norm off g, noise inflated */
+#define ATT_FLAG_ACCEL_REJECTED   (1u << 3)  /* last accel: norm beyond accel_reject, not fused */
+#define ATT_FLAG_MAG_DISTURBED    (1u << 4)  /* last mag: norm or dip off reference, not fused */
+#define ATT_FLAG_HEADING_HELD     (1u << 5)  /* last mag: not fused because of gimbal lock */
+#define ATT_FLAG_GYRO_GATED       (1u << 6)  /* last gyro: at least one axis gated */
+#define ATT_FLAG_ACCEL_GATED      (1u << 7)  /* last accel: at least one axis gated */
+#define ATT_FLAG_MAG_GATED        (1u << 8)  /* last mag: gated */
+#define ATT_FLAG_GATE_BYPASS      (1u << 9)  /* a gate is bypassed after gate_timeout */
+#define ATT_FLAG_HEADING_LIMITED  (1u << 10) /* heading variance at heading_var_max */
+#define ATT_FLAG_REMAPPED         (1u << 11) /* last predict: pitch passed +-90 deg, remapped */
+
+/* Counters saturate at UINT32_MAX. Test ratios: innovation^2 / (gate^2 S), > 1 gated. */
+typedef struct {
+    uint32_t steps;           /* att_step calls that ran a prediction */
+    uint32_t gyro_fused;      /* scalar updates fused, per sensor */
+    uint32_t accel_fused;
+    uint32_t mag_fused;
+    uint32_t gyro_gated;      /* scalar updates gated, per sensor */
+    uint32_t accel_gated;
+    uint32_t mag_gated;
+    uint32_t accel_skipped;   /* samples not fused by policy (linear acceleration) */
+    uint32_t mag_skipped;     /* samples not fused by policy (disturbance, gimbal lock) */
+    uint32_t rejected;        /* calls refused for bad input (status >= EKF_ERR_NULL and < EKF_GATED) */
+    uint32_t numeric;         /* updates refused with EKF_ERR_NUMERIC */
+    uint32_t remaps;          /* pitch remaps through +-90 deg */
+    ekf_scalar_t gyro_ratio[3];
+    ekf_scalar_t accel_ratio[3];
+    ekf_scalar_t mag_ratio;
+    ekf_scalar_t accel_norm_error; /* last | |a| - g |, m/s^2 */
+    ekf_scalar_t mag_norm_error;   /* last |m| / ref - 1 */
+    ekf_scalar_t mag_dip_error;    /* last dip - ref dip, rad */
+} att_diag_t;
+
+/* Filter memory. Treat as opaque: read it through the accessors below. */
+typedef struct {
+    ekf_scalar_t x[ATT_N];
+    ekf_scalar_t P[ATT_N * ATT_N];
+    att_settings_t settings;
+    ekf_scalar_t mag_ref_norm;  /* in use (set or learned) */
+    ekf_scalar_t mag_ref_dip;
+    ekf_scalar_t align_acc[3];  /* sums during alignment */
+    ekf_scalar_t align_mag[3];
+    uint16_t align_count;
+    uint16_t align_mag_count;
+    ekf_scalar_t gated_time[3]; /* s of continuous gating: gyro, accel, mag */
+    uint32_t flags;
+    att_diag_t diag;
+} att_ekf_t;
+
+/* Sensor presence bits of att_sample_t.valid */
+#define ATT_HAS_GYRO  (1u << 0)
+#define ATT_HAS_ACCEL (1u << 1)
+#define ATT_HAS_MAG   (1u << 2)
+
+/* One IMU sample. Sensors whose bit is clear in valid are ignored. */
+typedef struct {
+    ekf_scalar_t dt;       /* time since the previous sample, s (ignored while aligning) */
+    ekf_scalar_t gyro[3];  /* rad/s, body frame */
+    ekf_scalar_t accel[3]; /* m/s^2, specific force, body frame (+g up at rest) */
+    ekf_scalar_t mag[3];   /* magnetic field, body frame (uT or the unit of the settings) */
+    uint8_t valid;         /* ATT_HAS_* bits */
+} att_sample_t;
+
+/* Per-stage result of att_step. A stage whose sensor was absent reports EKF_OK. */
+typedef struct {
+    ekf_status_t predict;
+    ekf_status_t gyro;
+    ekf_status_t accel;
+    ekf_status_t mag;
+} att_step_report_t;
+
+/* Validates settings and resets the filter to "not aligned". EKF_ERR_SETTINGS if a setting
+ * is out of range (the filter is then not usable until a successful att_init). */
+ekf_status_t att_init(att_ekf_t *f, const att_settings_t *settings);
+
+/* 0 if the settings are usable, else EKF_ERR_SETTINGS (or EKF_ERR_NULL). */
+ekf_status_t att_settings_check(const att_settings_t *s);
+
+/* Sets the attitude from one accelerometer sample (m/s^2) and optionally a magnetometer
+ * sample (NULL: heading 0 with variance heading_var_max), rates zero; resets P. */
+ekf_status_t att_align(att_ekf_t *f, const ekf_scalar_t accel[3], const ekf_scalar_t mag[3]);
+
+/* One sample: align (first align_samples accelerometer samples) or gyro update, predict,
+ * accelerometer and magnetometer updates. Returns EKF_OK if everything present was fused,
+ * else the first non-OK stage status (order: predict, gyro, accel, mag); report (may be
+ * NULL) gets every stage. A bad dt refuses the whole sample; a bad sensor vector refuses
+ * only that sensor. While aligning, samples without accelerometer return
+ * EKF_ERR_NOT_INITIALISED. */
+ekf_status_t att_step(att_ekf_t *f, const att_sample_t *sample, att_step_report_t *report);
+
+/* The stages (require an aligned filter; EKF_ERR_NOT_INITIALISED otherwise). */
+ekf_status_t att_predict(att_ekf_t *f, ekf_scalar_t dt);
+ekf_status_t att_update_gyro(att_ekf_t *f, const ekf_scalar_t gyro[3]);
+ekf_status_t att_update_accel(att_ekf_t *f, const ekf_scalar_t accel[3]);
+ekf_status_t att_update_mag(att_ekf_t *f, const ekf_scalar_t mag[3]);
+
+/* Outputs. */
+void att_get_euler(const att_ekf_t *f, ekf_scalar_t euler[3]);       /* phi, theta, psi, rad */
+void att_get_body_rates(const att_ekf_t *f, ekf_scalar_t w[3]);      /* p, q, r, rad/s */
+void att_get_euler_rates(const att_ekf_t *f, ekf_scalar_t e[3]);     /* rad/s */
+void att_get_quaternion(const att_ekf_t *f, ekf_scalar_t q[4]);      /* w, x, y, z: body to ENU */
+void att_get_variances(const att_ekf_t *f, ekf_scalar_t var[ATT_N]); /* diagonal of P */
+const ekf_scalar_t *att_state(const att_ekf_t *f);                   /* x[ATT_N] */
+const ekf_scalar_t *att_covariance(const att_ekf_t *f);              /* P, row-major */
+uint32_t att_flags(const att_ekf_t *f);
+const att_diag_t *att_diag(const att_ekf_t *f);
+
+#endif /* ATT_H */

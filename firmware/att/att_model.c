@@ -1,0 +1,88 @@
+/*
+ * att_model.c - hand-written part of the attitude model (see att_model.h).
+ */
+#include "att_model.h"
+
+#include <stddef.h>
+
+#include "att_gen.h"
+
+int att_trig(ekf_scalar_t phi, ekf_scalar_t theta, ekf_scalar_t theta_limit, att_trig_t *t)
+{
+    int clamped = 0;
+    if (theta > theta_limit) {
+        theta = theta_limit;
+        clamped = 1;
+    } else if (theta < ekf_neg(theta_limit)) {
+        theta = ekf_neg(theta_limit);
+        clamped = 1;
+    }
+    t->sphi = ekf_sin(phi);
+    t->cphi = ekf_cos(phi);
+    t->sth = ekf_sin(theta);
+    t->cth = ekf_cos(theta);
+    /* |theta| <= theta_limit < pi/2, so cth >= cos(theta_limit) > 0 */
+    t->secth = ekf_div(EKF_C(1), t->cth);
+    return clamped;
+}
+
+void att_model_transition(const ekf_scalar_t x[ATT_N], const ekf_scalar_t w[3], ekf_scalar_t dt,
+                          ekf_scalar_t theta_limit, ekf_scalar_t xn[ATT_N], att_trig_t *tn)
+{
+    att_trig_t t;
+    int i;
+    for (i = 0; i < 3; ++i) {
+        xn[ATT_P + i] = (w != NULL) ? ekf_add(x[ATT_P + i], w[i]) : x[ATT_P + i];
+        xn[ATT_PHI + i] = ekf_mac(x[ATT_PHI + i], dt, x[ATT_PHID + i]);
+    }
+    (void)att_trig(xn[ATT_PHI], xn[ATT_THETA], theta_limit, &t);
+    att_gen_euler_rates(&t, &xn[ATT_P], &xn[ATT_PHID]);
+    if (tn != NULL) {
+        *tn = t;
+    }
+}
+
+static void negate_row_col(ekf_scalar_t P[ATT_N * ATT_N], int i)
+{
+    int j;
+    for (j = 0; j < ATT_N; ++j) {
+        P[i * ATT_N + j] = ekf_neg(P[i * ATT_N + j]);
+        P[j * ATT_N + i] = ekf_neg(P[j * ATT_N + i]);
+    }
+    /* the diagonal entry was negated twice: unchanged, as the congruence requires */
+}
+
+int att_model_normalise(ekf_scalar_t x[ATT_N], ekf_scalar_t P[ATT_N * ATT_N])
+{
+    int remapped = 0;
+    if (x[ATT_THETA] > EKF_HALF_PI || x[ATT_THETA] < ekf_neg(EKF_HALF_PI)) {
+        /* (phi, theta, psi) and (phi + pi, pi - theta, psi + pi) are the same rotation;
+         * theta -> pi - theta is an odd map, so theta's rate and covariance change sign */
+        const ekf_scalar_t top = (x[ATT_THETA] > EKF_C(0)) ? EKF_PI : ekf_neg(EKF_PI);
+        x[ATT_THETA] = ekf_sub(top, x[ATT_THETA]);
+        x[ATT_PHI] = ekf_add(x[ATT_PHI], EKF_PI);
+        x[ATT_PSI] = ekf_add(x[ATT_PSI], EKF_PI);
+        x[ATT_THETAD] = ekf_neg(x[ATT_THETAD]);
+        if (P != NULL) {
+            negate_row_col(P, ATT_THETA);
+            negate_row_col(P, ATT_THETAD);
+        }
+        remapped = 1;
+    }
+    x[ATT_PHI] = ekf_wrap_pi(x[ATT_PHI]);
+    x[ATT_PSI] = ekf_wrap_pi(x[ATT_PSI]);
+    return remapped;
+}
+
+void att_model_euler_to_quat(ekf_scalar_t phi, ekf_scalar_t theta, ekf_scalar_t psi, ekf_scalar_t q[4])
+{
+    const ekf_scalar_t half = EKF_C(0.5);
+    const ekf_scalar_t cr = ekf_cos(ekf_mul(phi, half)), sr = ekf_sin(ekf_mul(phi, half));
+    const ekf_scalar_t cp = ekf_cos(ekf_mul(theta, half)), sp = ekf_sin(ekf_mul(theta, half));
+    const ekf_scalar_t cy = ekf_cos(ekf_mul(psi, half)), sy = ekf_sin(ekf_mul(psi, half));
+    /* q = qz(psi) * qy(theta) * qx(phi) */
+    q[0] = ekf_add(ekf_mul(ekf_mul(cy, cp), cr), ekf_mul(ekf_mul(sy, sp), sr));
+    q[1] = ekf_sub(ekf_mul(ekf_mul(cy, cp), sr), ekf_mul(ekf_mul(sy, sp), cr));
+    q[2] = ekf_add(ekf_mul(ekf_mul(cy, sp), cr), ekf_mul(ekf_mul(sy, cp), sr));
+    q[3] = ekf_sub(ekf_mul(ekf_mul(sy, cp), cr), ekf_mul(ekf_mul(cy, sp), sr));
+}

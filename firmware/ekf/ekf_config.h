@@ -1,0 +1,37 @@
+/*
+ * ekf_config.h - the one compile-time configuration header of the estimator.
+ *
+ * Every build option of the filter library is chosen here (or by the matching -D flag
+ * from the build system). Nothing else in the library reads the preprocessor for
+ * configuration.
+ *
+ * Scalar type (exactly one; default EKF_SCALAR_FLOAT):
+ *   EKF_SCALAR_FLOAT   32-bit IEEE float. The default: what a Cortex-M4F runs natively.
+ *   EKF_SCALAR_DOUBLE  64-bit IEEE double. The reference build used by the Jacobian tests.
+ *
+ * Model code never names float or double: it uses ekf_scalar_t and the operations of
+ * ekf_scalar.h, so that another number representation (a Q-format fixed-point type)
+ * can be plugged in there without touching any model.
+ */
+#ifndef EKF_CONFIG_H
+#define EKF_CONFIG_H
+
+#if defined(EKF_SCALAR_FLOAT) + defined(EKF_SCALAR_DOUBLE) > 1
+#error "ekf_config.h: define at most one of EKF_SCALAR_FLOAT, EKF_SCALAR_DOUBLE"
+#endif
+
+#if !defined(EKF_SCALAR_DOUBLE) && !defined(EKF_SCALAR_FLOAT)
+#define EKF_SCALAR_FLOAT 1
+#endif
+
+/* Largest state dimension any generic routine must handle. Sizes two scratch vectors on
+ * the stack of ekf_update_scalar(); the models' own arrays are sized by their own
+ * constants. At most 32 (ekf_cov_propagate keeps the set of modified rows in 32 bits). */
+#ifndef EKF_MAX_STATES
+#define EKF_MAX_STATES 32
+#endif
+#if EKF_MAX_STATES > 32 || EKF_MAX_STATES < 1
+#error "EKF_MAX_STATES must be in 1..32"
+#endif
+
+#endif /* EKF_CONFIG_H */

@@ -1,0 +1,107 @@
+/*
+ * ekf_scalar.h - the scalar type of the whole filter and every operation on it.
+ *
+ * Rules for code built on this header (core, attitude model, model library):
+ *   - values are ekf_scalar_t; constants are written EKF_C(1.5);
+ *   - + - * / go through ekf_add/ekf_sub/ekf_mul/ekf_div/ekf_neg (a fixed-point type
+ *     needs rescaling and saturation there);
+ *   - comparisons (<, >, ==) and assignment use the native operators: every supported
+ *     representation is an arithmetic type with a monotonic encoding;
+ *   - trigonometry, square root, floor and finiteness go through the functions below: no other
+ *     libm call appears in the library, and nothing is promoted to double by accident
+ *     (the project builds with -Wdouble-promotion -Werror).
+ * Conversion at the API boundary: ekf_from_float / ekf_to_float.
+ */
+#ifndef EKF_SCALAR_H
+#define EKF_SCALAR_H
+
+#include <math.h>
+
+#include "ekf_config.h"
+
+#if defined(EKF_SCALAR_DOUBLE)
+
+typedef double ekf_scalar_t;
+#define EKF_SCALAR_NAME "double"
+/* Constant of the scalar type; the cast happens at compile time. */
+#define EKF_C(x) ((ekf_scalar_t)(x))
+#define EKF_SCALAR_EPS EKF_C(2.220446049250313e-16)
+
+static inline ekf_scalar_t ekf_sqrt(ekf_scalar_t a) { return sqrt(a); }
+static inline ekf_scalar_t ekf_sin(ekf_scalar_t a) { return sin(a); }
+static inline ekf_scalar_t ekf_cos(ekf_scalar_t a) { return cos(a); }
+static inline ekf_scalar_t ekf_atan2(ekf_scalar_t y, ekf_scalar_t x) { return atan2(y, x); }
+static inline ekf_scalar_t ekf_abs(ekf_scalar_t a) { return fabs(a); }
+static inline ekf_scalar_t ekf_floor(ekf_scalar_t a) { return floor(a); }
+static inline ekf_scalar_t ekf_from_float(float a) { return (ekf_scalar_t)a; }
+static inline float ekf_to_float(ekf_scalar_t a) { return (float)a; }
+
+#elif defined(EKF_SCALAR_FLOAT)
+
+typedef float ekf_scalar_t;
+#define EKF_SCALAR_NAME "float"
+#define EKF_C(x) ((ekf_scalar_t)(x))
+#define EKF_SCALAR_EPS EKF_C(1.1920929e-07)
+
+static inline ekf_scalar_t ekf_sqrt(ekf_scalar_t a) { return sqrtf(a); }
+static inline ekf_scalar_t ekf_sin(ekf_scalar_t a) { return sinf(a); }
+static inline ekf_scalar_t ekf_cos(ekf_scalar_t a) { return cosf(a); }
+static inline ekf_scalar_t ekf_atan2(ekf_scalar_t y, ekf_scalar_t x) { return atan2f(y, x); }
+static inline ekf_scalar_t ekf_abs(ekf_scalar_t a) { return fabsf(a); }
+static inline ekf_scalar_t ekf_floor(ekf_scalar_t a) { return floorf(a); }
+static inline ekf_scalar_t ekf_from_float(float a) { return a; }
+static inline float ekf_to_float(ekf_scalar_t a) { return a; }
+
+#else
+#error "ekf_scalar.h: no scalar type selected (see ekf_config.h)"
+#endif
+
+/* Arithmetic. For IEEE types these are the plain operators; they exist so that a
+ * representation with rescaling or saturation replaces them in one place. */
+static inline ekf_scalar_t ekf_add(ekf_scalar_t a, ekf_scalar_t b) { return a + b; }
+static inline ekf_scalar_t ekf_sub(ekf_scalar_t a, ekf_scalar_t b) { return a - b; }
+static inline ekf_scalar_t ekf_mul(ekf_scalar_t a, ekf_scalar_t b) { return a * b; }
+static inline ekf_scalar_t ekf_div(ekf_scalar_t a, ekf_scalar_t b) { return a / b; }
+static inline ekf_scalar_t ekf_neg(ekf_scalar_t a) { return -a; }
+/* a*b + c: one rounding less where the target fuses it. */
+static inline ekf_scalar_t ekf_mac(ekf_scalar_t c, ekf_scalar_t a, ekf_scalar_t b)
+{
+    return c + a * b;
+}
+static inline int ekf_isfinite(ekf_scalar_t a) { return isfinite(a) ? 1 : 0; }
+
+static inline ekf_scalar_t ekf_min(ekf_scalar_t a, ekf_scalar_t b) { return (a < b) ? a : b; }
+static inline ekf_scalar_t ekf_max(ekf_scalar_t a, ekf_scalar_t b) { return (a > b) ? a : b; }
+static inline ekf_scalar_t ekf_clamp(ekf_scalar_t a, ekf_scalar_t lo, ekf_scalar_t hi)
+{
+    return ekf_min(ekf_max(a, lo), hi);
+}
+static inline ekf_scalar_t ekf_sq(ekf_scalar_t a) { return ekf_mul(a, a); }
+
+#define EKF_PI EKF_C(3.14159265358979323846)
+#define EKF_TWO_PI EKF_C(6.28318530717958647692)
+#define EKF_HALF_PI EKF_C(1.57079632679489661923)
+
+/* Angle wrapped into [-pi, pi) for any finite input: a - 2 pi floor((a + pi) / 2 pi), then
+ * one correction step for the rounding of that product, then a clamp (for inputs so
+ * large that the reduction is no longer exact in the scalar's precision, the result is
+ * still an angle in range, though not the exact residue). */
+static inline ekf_scalar_t ekf_wrap_pi(ekf_scalar_t a)
+{
+    if (a >= EKF_PI || a < ekf_neg(EKF_PI)) {
+        const ekf_scalar_t turns = ekf_floor(ekf_div(ekf_add(a, EKF_PI), EKF_TWO_PI));
+        a = ekf_sub(a, ekf_mul(turns, EKF_TWO_PI));
+        if (a >= EKF_PI) {
+            a = ekf_sub(a, EKF_TWO_PI);
+        } else if (a < ekf_neg(EKF_PI)) {
+            a = ekf_add(a, EKF_TWO_PI);
+        }
+        a = ekf_clamp(a, ekf_neg(EKF_PI), EKF_PI);
+        if (a >= EKF_PI) {
+            a = ekf_neg(EKF_PI);
+        }
+    }
+    return a;
+}
+
+#endif /* EKF_SCALAR_H */

@@ -1,0 +1,270 @@
+"""Symbolic derivation of the 9-state attitude model (docs/derivation.md).
+
+State ``x = [p q r  phi theta psi  phid thetad psid]``: body rates (rad/s), ZYX Euler
+angles (rad), Euler-angle rates (rad/s). Earth frame ENU (z up); the rotation
+``R = Rz(psi) Ry(theta) Rx(phi)`` maps body to earth.
+
+Transition over one step ``dt`` with angular-acceleration noise ``w`` (rad/s, the change of
+the body rate over the step):
+
+    omega+  = omega + w                       (body rates: random walk)
+    Theta+  = Theta + dt * Thetadot           (angles integrated with the Euler-rate states)
+    Thetadot+ = W(phi+, theta+) * omega+      (Euler rates from body rates, ZYX kinematics)
+
+``W`` is the body-rate to Euler-rate map; ``E = W^-1`` (Euler rates to body rates) is
+generated too. Every Jacobian below is ``sympy``'s partial derivative of these expressions
+with all nine states independent: no ratio of time derivatives appears anywhere.
+
+Trigonometry is not evaluated in the generated code. The caller passes the sines, cosines
+and ``sec(theta)`` of the angles the function is evaluated at (``att_trig_t``), computed once
+per step in hand-written code that also applies the gimbal-lock clamp (att_model.c).
+"""
+
+from __future__ import annotations
+
+from typing import Dict
+
+import sympy as sp
+
+from .cprinter import CFunction, render_files, sparse_entries
+
+STATE_NAMES = ["P", "Q", "R", "PHI", "THETA", "PSI", "PHID", "THETAD", "PSID"]
+
+p, q, r = sp.symbols("p q r", real=True)
+phi, theta, psi = sp.symbols("phi theta psi", real=True)
+phid, thetad, psid = sp.symbols("phid thetad psid", real=True)
+dt = sp.Symbol("dt", positive=True)
+wp, wq, wr = sp.symbols("wp wq wr", real=True)
+X = sp.Matrix([p, q, r, phi, theta, psi, phid, thetad, psid])
+NOISE = sp.Matrix([wp, wq, wr])
+
+# Trigonometric terms handed in by the caller (att_trig_t).
+sph, cph, sth, cth, secth = sp.symbols("sph cph sth cth secth", real=True)
+mx, my, mz = sp.symbols("mx my mz", real=True)
+
+
+def euler_rate_map(ph: sp.Expr, th: sp.Expr) -> sp.Matrix:
+    """W: body rates -> Euler-angle rates for ZYX angles (singular at cos(theta) = 0)."""
+    return sp.Matrix(
+        [
+            [1, sp.sin(ph) * sp.tan(th), sp.cos(ph) * sp.tan(th)],
+            [0, sp.cos(ph), -sp.sin(ph)],
+            [0, sp.sin(ph) / sp.cos(th), sp.cos(ph) / sp.cos(th)],
+        ]
+    )
+
+
+def body_rate_map(ph: sp.Expr, th: sp.Expr) -> sp.Matrix:
+    """E = W^-1: Euler-angle rates -> body rates (p = phid - psid sin(theta), ...)."""
+    return sp.Matrix(
+        [
+            [1, 0, -sp.sin(th)],
+            [0, sp.cos(ph), sp.sin(ph) * sp.cos(th)],
+            [0, -sp.sin(ph), sp.cos(ph) * sp.cos(th)],
+        ]
+    )
+
+
+def rot_x(a: sp.Expr) -> sp.Matrix:
+    return sp.Matrix([[1, 0, 0], [0, sp.cos(a), -sp.sin(a)], [0, sp.sin(a), sp.cos(a)]])
+
+
+def rot_y(a: sp.Expr) -> sp.Matrix:
+    return sp.Matrix([[sp.cos(a), 0, sp.sin(a)], [0, 1, 0], [-sp.sin(a), 0, sp.cos(a)]])
+
+
+def rot_z(a: sp.Expr) -> sp.Matrix:
+    return sp.Matrix([[sp.cos(a), -sp.sin(a), 0], [sp.sin(a), sp.cos(a), 0], [0, 0, 1]])
+
+
+def transition() -> sp.Matrix:
+    """f(x, w, dt) as above."""
+    omega = sp.Matrix([p, q, r]) + NOISE
+    phin, thn, psin = phi + dt * phid, theta + dt * thetad, psi + dt * psid
+    rates = euler_rate_map(phin, thn) * omega
+    return sp.Matrix([omega[0], omega[1], omega[2], phin, thn, psin, rates[0], rates[1], rates[2]])
+
+
+def accel_direction() -> sp.Matrix:
+    """Unit specific force at rest in the body frame: R^T * (0, 0, 1) (ENU, z up)."""
+    return (rot_z(psi) * rot_y(theta) * rot_x(phi)).T * sp.Matrix([0, 0, 1])
+
+
+def mag_levelled() -> sp.Matrix:
+    """Body-frame field rotated into the yaw frame: Ry(theta) Rx(phi) m.
+
+    For an earth field (Bh sin D, Bh cos D, -Bv) (declination D east of north), this is
+    (Bh sin(psi + D), Bh cos(psi + D), -Bv): the heading is atan2(x, y) - D.
+    """
+    return rot_y(theta) * rot_x(phi) * sp.Matrix([mx, my, mz])
+
+
+def _trig_subs(expr: sp.Expr, ph: sp.Expr, th: sp.Expr) -> sp.Expr:
+    """Replace trig functions of (ph, th) by the caller-supplied att_trig_t symbols."""
+    expr = sp.sympify(expr)
+    expr = expr.subs(
+        {
+            sp.tan(th): sth * secth,
+            sp.sin(ph): sph,
+            sp.cos(ph): cph,
+            sp.sin(th): sth,
+        }
+    )
+    expr = expr.subs(sp.cos(th), cth)
+    expr = expr.replace(
+        lambda e: e.is_Pow and e.base == cth and e.exp.is_Integer and e.exp < 0,
+        lambda e: secth ** (-e.exp),
+    )
+    expr = sp.expand(expr)
+    leftover = expr.atoms(sp.Function)
+    if leftover:
+        raise ValueError(f"trig left after substitution: {leftover}")
+    return expr
+
+
+def _index(i: int) -> str:
+    return f"ATT_{STATE_NAMES[i]}"
+
+
+TRIG_PROLOGUE = [
+    "const ekf_scalar_t sph = t->sphi;",
+    "const ekf_scalar_t cph = t->cphi;",
+    "const ekf_scalar_t sth = t->sth;",
+    "const ekf_scalar_t cth = t->cth;",
+    "const ekf_scalar_t secth = t->secth;",
+]
+STATE_PROLOGUE = [f"const ekf_scalar_t {s.name} = x[{_index(i)}];" for i, s in enumerate(X)]
+
+
+def build() -> Dict[str, str]:
+    f = transition()
+    phin, thn = phi + dt * phid, theta + dt * thetad
+    zero_noise = {wp: 0, wq: 0, wr: 0}
+
+    F = f.jacobian(X).subs(zero_noise)
+    D = F - sp.eye(9)
+    d_entries = [(i, j, _trig_subs(e, phin, thn)) for i, j, e in sparse_entries(D)]
+    G = f.jacobian(NOISE).subs(zero_noise)
+    g_entries = [(i, j, _trig_subs(e, phin, thn)) for i, j, e in sparse_entries(G)]
+    # The noise Jacobian is [I; 0; W(phi+, theta+)]: only its Euler-rate block depends on
+    # the state, the rest is identity and is applied as such by att_model.c.
+    g_block = [(i, j, G[i, j]) for i in range(6, 9) for j in range(3)]
+    g_block = [(i, j, _trig_subs(e, phin, thn)) for i, j, e in g_block]
+    assert all(e == 1 for i, j, e in g_entries if i < 6 and i == j)
+
+    W = euler_rate_map(phi, theta)
+    Einv = body_rate_map(phi, theta)
+    rates = W * sp.Matrix([p, q, r])
+    body = Einv * sp.Matrix([phid, thetad, psid])
+
+    h_acc = accel_direction()
+    H_acc = h_acc.jacobian(X)
+    h_entries = sparse_entries(H_acc)
+    assert {j for _, j, _ in h_entries} <= {3, 4}, "accel h depends on roll and pitch only"
+
+    m_lev = mag_levelled()
+
+    fns = []
+    fns.append(
+        CFunction(
+            name="att_gen_euler_rates",
+            doc="Euler-angle rates (rad/s) from body rates w = (p, q, r) (rad/s): W(phi, theta) w.\n"
+            "t: trigonometry of (phi, theta).",
+            params="const att_trig_t *t, const ekf_scalar_t w[3], ekf_scalar_t out[3]",
+            prologue=TRIG_PROLOGUE
+            + ["const ekf_scalar_t p = w[0];", "const ekf_scalar_t q = w[1];", "const ekf_scalar_t r = w[2];"],
+            outputs=[(f"out[{k}]", _trig_subs(rates[k], phi, theta)) for k in range(3)],
+        )
+    )
+    fns.append(
+        CFunction(
+            name="att_gen_body_rates",
+            doc="Body rates (rad/s) from Euler-angle rates e = (phid, thetad, psid) (rad/s):\n"
+            "E(phi, theta) e, the inverse of att_gen_euler_rates. t: trigonometry of (phi, theta).",
+            params="const att_trig_t *t, const ekf_scalar_t e[3], ekf_scalar_t out[3]",
+            prologue=TRIG_PROLOGUE
+            + [
+                "const ekf_scalar_t phid = e[0];",
+                "const ekf_scalar_t thetad = e[1];",
+                "const ekf_scalar_t psid = e[2];",
+            ],
+            outputs=[(f"out[{k}]", _trig_subs(body[k], phi, theta)) for k in range(3)],
+        )
+    )
+    fns.append(
+        CFunction(
+            name="att_gen_transition_jacobian",
+            doc="Non-zero entries of D = F - I, F = df/dx, in the order of att_gen_f_pattern.\n"
+            "x: state before the step; dt: step (s); t: trigonometry of the advanced angles\n"
+            "(phi + dt phid, theta + dt thetad).",
+            params="const att_trig_t *t, const ekf_scalar_t x[ATT_N], ekf_scalar_t dt, "
+            "ekf_scalar_t d[ATT_GEN_F_NNZ]",
+            prologue=TRIG_PROLOGUE + STATE_PROLOGUE,
+            outputs=[(f"d[{k}]", e) for k, (_, _, e) in enumerate(d_entries)],
+        )
+    )
+    fns.append(
+        CFunction(
+            name="att_gen_noise_jacobian",
+            doc="Euler-rate block (rows PHID..PSID) of G = df/dw, row-major 3x3; the body-rate\n"
+            "block of G is the identity and the angle block is zero. t: trigonometry of the\n"
+            "advanced angles.",
+            params="const att_trig_t *t, ekf_scalar_t g[9]",
+            prologue=TRIG_PROLOGUE,
+            outputs=[(f"g[{(i - 6) * 3 + j}]", e) for i, j, e in g_block],
+        )
+    )
+    fns.append(
+        CFunction(
+            name="att_gen_accel_h",
+            doc="Predicted accelerometer direction (unit vector, body frame) h(x) = R^T (0,0,1),\n"
+            "the specific force of gravity divided by g. t: trigonometry of (phi, theta).",
+            params="const att_trig_t *t, ekf_scalar_t h[3]",
+            prologue=TRIG_PROLOGUE,
+            outputs=[(f"h[{k}]", _trig_subs(h_acc[k], phi, theta)) for k in range(3)],
+        )
+    )
+    fns.append(
+        CFunction(
+            name="att_gen_accel_jacobian",
+            doc="dh/d(phi, theta) of att_gen_accel_h, row-major 3x2 (all other columns are zero).",
+            params="const att_trig_t *t, ekf_scalar_t hj[6]",
+            prologue=TRIG_PROLOGUE,
+            outputs=[
+                (f"hj[{k * 2 + (j - 3)}]", _trig_subs(H_acc[k, j], phi, theta))
+                for k in range(3)
+                for j in (3, 4)
+            ],
+        )
+    )
+    fns.append(
+        CFunction(
+            name="att_gen_mag_level",
+            doc="Magnetic field m (body frame, any unit) rotated into the yaw frame:\n"
+            "Ry(theta) Rx(phi) m. Heading psi = atan2(out[0], out[1]) - declination;\n"
+            "dip = atan2(-out[2], |out[0..1]|). t: trigonometry of (phi, theta).",
+            params="const att_trig_t *t, const ekf_scalar_t m[3], ekf_scalar_t out[3]",
+            prologue=TRIG_PROLOGUE
+            + ["const ekf_scalar_t mx = m[0];", "const ekf_scalar_t my = m[1];", "const ekf_scalar_t mz = m[2];"],
+            outputs=[(f"out[{k}]", _trig_subs(m_lev[k], phi, theta)) for k in range(3)],
+        )
+    )
+
+    pattern = ",\n    ".join(f"{{{_index(i)}, {_index(j)}}}" for i, j, _ in d_entries)
+    header_extra = (
+        '#include "att_defs.h"\n\n'
+        "/* Number of structurally non-zero entries of D = F - I. */\n"
+        f"#define ATT_GEN_F_NNZ {len(d_entries)}\n\n"
+        "/* (row, column) of each entry of D, sorted by row: the pattern for ekf_cov_propagate. */\n"
+        "extern const ekf_nz_t att_gen_f_pattern[ATT_GEN_F_NNZ];"
+    )
+    source_extra = f"const ekf_nz_t att_gen_f_pattern[ATT_GEN_F_NNZ] = {{\n    {pattern}\n}};"
+    return render_files(
+        stem="att_gen",
+        title="attitude model: kinematics, Jacobians and measurement functions",
+        script="host_tools/attekf/codegen/attitude.py",
+        includes=["ekf.h"],
+        header_extra=header_extra,
+        source_extra=source_extra,
+        functions=fns,
+    )

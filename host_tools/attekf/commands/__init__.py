@@ -1,0 +1,1 @@
+"""Sub-commands of ``attekf``: one module each (NAME, HELP, add_arguments, run)."""

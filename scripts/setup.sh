@@ -1,0 +1,73 @@
+#!/usr/bin/env bash
+# Installs everything the project needs on a fresh Debian 12 machine, builds it, and
+# (unless --no-demo) runs the main job: simulate a recording, run the C estimator over
+# it and write a table and a plot to out/demo/.
+#
+#   ./scripts/setup.sh            install + build + demo
+#   ./scripts/setup.sh --no-demo  install + build only (used by scripts/test.sh)
+#
+# Idempotent: a second run only checks that everything is there (a few seconds).
+set -euo pipefail
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$ROOT"
+DEMO=1
+for arg in "$@"; do
+  case "$arg" in
+    --no-demo) DEMO=0 ;;
+    -h|--help) sed -n '2,9p' "$0"; exit 0 ;;
+    *) echo "setup.sh: unknown option '$arg' (see --help)" >&2; exit 2 ;;
+  esac
+done
+
+log() { printf '[setup] %s\n' "$*"; }
+
+# --- Debian packages ---------------------------------------------------------------
+APT_PACKAGES=(
+  build-essential cmake ninja-build git python3 python3-venv python3-pip
+  gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm
+  user-mode-linux kmod iproute2 can-utils
+  clang libclang-rt-14-dev lld cppcheck clang-tidy valgrind
+)
+missing=()
+for p in "${APT_PACKAGES[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed' || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  SUDO=""
+  if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+  log "installing Debian packages: ${missing[*]}"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+else
+  log "Debian packages present"
+fi
+
+# --- Python virtual environment -------------------------------------------------------
+# The interpreter is the machine's python3 (3.11 here); everything else is pinned.
+VENV="$ROOT/.venv"
+LOCK="$ROOT/host_tools/requirements.lock"
+STAMP="$VENV/.attekf-lock.sha256"
+if [ ! -x "$VENV/bin/python" ]; then
+  log "creating $VENV"
+  python3 -m venv "$VENV"
+fi
+want="$(sha256sum "$LOCK" "$ROOT/host_tools/pyproject.toml" | sha256sum | cut -d' ' -f1)"
+if [ ! -f "$STAMP" ] || [ "$(cat "$STAMP")" != "$want" ]; then
+  log "installing pinned Python packages"
+  "$VENV/bin/pip" install -q --disable-pip-version-check -r "$LOCK"
+  "$VENV/bin/pip" install -q --disable-pip-version-check --no-deps -e "$ROOT/host_tools"
+  echo "$want" > "$STAMP"
+else
+  log "Python packages present"
+fi
+
+# --- Build (host, float and double cores, tests, shared library for the binding) -------
+log "configuring and building build/host"
+cmake -S "$ROOT" -B "$ROOT/build/host" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+      -DPython3_EXECUTABLE="$VENV/bin/python" >/dev/null
+cmake --build "$ROOT/build/host" -j"$(nproc)"
+
+if [ "$DEMO" = 1 ]; then
+  "$ROOT/scripts/demo.sh"
+fi

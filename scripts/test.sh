@@ -1,0 +1,25 @@
+#!/usr/bin/env bash
+# Runs the whole test suite: installs/builds what is missing (scripts/setup.sh --no-demo),
+# then the C tests (Unity, driven by ctest) and the Python tests (pytest).
+# Exit status is non-zero if any test fails. Used by .ci/run.
+set -uo pipefail
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$ROOT"
+JOBS="$(nproc)"
+
+"$ROOT/scripts/setup.sh" --no-demo || { echo "[test] set-up failed" >&2; exit 1; }
+
+status=0
+echo "[test] ctest (build/host)"
+ctest --test-dir "$ROOT/build/host" --output-on-failure -j"$JOBS" || status=1
+
+echo "[test] pytest"
+"$ROOT/.venv/bin/python" -m pytest "$ROOT/tests/python" -q -ra || status=1
+
+if [ "$status" -ne 0 ]; then
+  echo "[test] FAILED"
+else
+  echo "[test] all passed"
+fi
+exit "$status"

@@ -1,0 +1,224 @@
+/*
+ * testsim.c - see testsim.h.
+ */
+#include "testsim.h"
+
+#include <math.h>
+#include <stddef.h>
+
+void ts_rng_seed(ts_rng_t *r, uint64_t seed)
+{
+    r->s = seed ? seed : 0x9E3779B97F4A7C15ull;
+}
+
+static uint64_t next_u64(ts_rng_t *r)
+{
+    uint64_t x = r->s;
+    x ^= x >> 12;
+    x ^= x << 25;
+    x ^= x >> 27;
+    r->s = x;
+    return x * 0x2545F4914F6CDD1Dull;
+}
+
+double ts_uniform(ts_rng_t *r)
+{
+    return (double)(next_u64(r) >> 11) * (1.0 / 9007199254740992.0);
+}
+
+double ts_uniform_in(ts_rng_t *r, double lo, double hi)
+{
+    return lo + (hi - lo) * ts_uniform(r);
+}
+
+double ts_gauss(ts_rng_t *r)
+{
+    double u1 = ts_uniform(r), u2 = ts_uniform(r);
+    if (u1 < 1e-300) {
+        u1 = 1e-300;
+    }
+    return sqrt(-2.0 * log(u1)) * cos(6.283185307179586 * u2);
+}
+
+void ts_euler_to_R(double phi, double theta, double psi, double R[9])
+{
+    const double cr = cos(phi), sr = sin(phi), cp = cos(theta), sp = sin(theta), cy = cos(psi), sy = sin(psi);
+    /* Rz(psi) Ry(theta) Rx(phi) */
+    R[0] = cy * cp;
+    R[1] = cy * sp * sr - sy * cr;
+    R[2] = cy * sp * cr + sy * sr;
+    R[3] = sy * cp;
+    R[4] = sy * sp * sr + cy * cr;
+    R[5] = sy * sp * cr - cy * sr;
+    R[6] = -sp;
+    R[7] = cp * sr;
+    R[8] = cp * cr;
+}
+
+void ts_R_to_euler(const double R[9], double e[3])
+{
+    double s = -R[6];
+    if (s > 1.0) {
+        s = 1.0;
+    } else if (s < -1.0) {
+        s = -1.0;
+    }
+    e[0] = atan2(R[7], R[8]);
+    e[1] = asin(s);
+    e[2] = atan2(R[3], R[0]);
+}
+
+double ts_euler_angle_between(const double a[3], const double b[3])
+{
+    double Ra[9], Rb[9], tr = 0.0, c;
+    int i, k;
+    ts_euler_to_R(a[0], a[1], a[2], Ra);
+    ts_euler_to_R(b[0], b[1], b[2], Rb);
+    /* trace(Ra Rb^T) = 1 + 2 cos(angle) */
+    for (i = 0; i < 3; ++i) {
+        for (k = 0; k < 3; ++k) {
+            tr += Ra[i * 3 + k] * Rb[i * 3 + k];
+        }
+    }
+    c = (tr - 1.0) / 2.0;
+    if (c > 1.0) {
+        c = 1.0;
+    } else if (c < -1.0) {
+        c = -1.0;
+    }
+    return acos(c);
+}
+
+void ts_sim_default(ts_sim_cfg_t *c)
+{
+    c->gravity = 9.81;
+    c->mag_h = 20.0;
+    c->mag_v = 44.0;
+    c->gyro_noise = 0.005;
+    c->gyro_bias[0] = c->gyro_bias[1] = c->gyro_bias[2] = 0.0;
+    c->accel_noise = 0.05;
+    c->mag_noise = 0.3;
+    c->dt = 0.01;
+    c->substeps = 10;
+}
+
+void ts_sim_init(ts_sim_t *s, const ts_sim_cfg_t *cfg, uint64_t seed, double phi, double theta, double psi)
+{
+    s->cfg = *cfg;
+    ts_rng_seed(&s->rng, seed);
+    ts_euler_to_R(phi, theta, psi, s->R);
+    s->w[0] = s->w[1] = s->w[2] = 0.0;
+    s->t = 0.0;
+}
+
+/* R <- R * exp([w dt]x) (body-fixed rotation), Rodrigues, then re-orthonormalised. */
+static void rotate_body(double R[9], const double w[3], double dt)
+{
+    const double ax = w[0] * dt, ay = w[1] * dt, az = w[2] * dt;
+    const double ang = sqrt(ax * ax + ay * ay + az * az);
+    double E[9], Rn[9];
+    int i, j, k;
+    if (ang < 1e-15) {
+        return;
+    }
+    {
+        const double x = ax / ang, y = ay / ang, z = az / ang, c = cos(ang), s = sin(ang), v = 1.0 - c;
+        E[0] = c + x * x * v;     E[1] = x * y * v - z * s; E[2] = x * z * v + y * s;
+        E[3] = y * x * v + z * s; E[4] = c + y * y * v;     E[5] = y * z * v - x * s;
+        E[6] = z * x * v - y * s; E[7] = z * y * v + x * s; E[8] = c + z * z * v;
+    }
+    for (i = 0; i < 3; ++i) {
+        for (j = 0; j < 3; ++j) {
+            double acc = 0.0;
+            for (k = 0; k < 3; ++k) {
+                acc += R[i * 3 + k] * E[k * 3 + j];
+            }
+            Rn[i * 3 + j] = acc;
+        }
+    }
+    for (i = 0; i < 9; ++i) {
+        R[i] = Rn[i];
+    }
+}
+
+void ts_sim_step(ts_sim_t *s, const double w[3], const double lin_acc[3], att_sample_t *out)
+{
+    const ts_sim_cfg_t *c = &s->cfg;
+    const double me[3] = {0.0, c->mag_h, -c->mag_v};
+    double fe[3] = {0.0, 0.0, c->gravity};
+    int i, k;
+    for (k = 0; k < c->substeps; ++k) {
+        rotate_body(s->R, w, c->dt / (double)c->substeps);
+    }
+    s->t += c->dt;
+    for (i = 0; i < 3; ++i) {
+        s->w[i] = w[i];
+        if (lin_acc != NULL) {
+            fe[i] += lin_acc[i];
+        }
+    }
+    out->dt = (ekf_scalar_t)c->dt;
+    for (i = 0; i < 3; ++i) {
+        /* body = R^T earth */
+        const double fb = s->R[0 * 3 + i] * fe[0] + s->R[1 * 3 + i] * fe[1] + s->R[2 * 3 + i] * fe[2];
+        const double mb = s->R[0 * 3 + i] * me[0] + s->R[1 * 3 + i] * me[1] + s->R[2 * 3 + i] * me[2];
+        out->gyro[i] = (ekf_scalar_t)(w[i] + c->gyro_bias[i] + c->gyro_noise * ts_gauss(&s->rng));
+        out->accel[i] = (ekf_scalar_t)(fb + c->accel_noise * ts_gauss(&s->rng));
+        out->mag[i] = (ekf_scalar_t)(mb + c->mag_noise * ts_gauss(&s->rng));
+    }
+    out->valid = ATT_HAS_GYRO | ATT_HAS_ACCEL | ATT_HAS_MAG;
+}
+
+void ts_sim_euler(const ts_sim_t *s, double e[3])
+{
+    ts_R_to_euler(s->R, e);
+}
+
+int ts_is_symmetric_exact(const ekf_scalar_t *P, int n)
+{
+    int i, j;
+    for (i = 0; i < n; ++i) {
+        for (j = i + 1; j < n; ++j) {
+            if (!(P[i * n + j] == P[j * n + i])) {
+                return 0;
+            }
+        }
+    }
+    return 1;
+}
+
+int ts_is_positive_definite(const ekf_scalar_t *P, int n, double *min_pivot)
+{
+    double L[32 * 32];
+    double minp = HUGE_VAL;
+    int i, j, k;
+    if (n > 32) {
+        return 0;
+    }
+    for (i = 0; i < n; ++i) {
+        for (j = 0; j <= i; ++j) {
+            double sum = (double)P[i * n + j];
+            for (k = 0; k < j; ++k) {
+                sum -= L[i * 32 + k] * L[j * 32 + k];
+            }
+            if (i == j) {
+                if (!(sum > 0.0) || !isfinite(sum)) {
+                    if (min_pivot != NULL) {
+                        *min_pivot = sum;
+                    }
+                    return 0;
+                }
+                if (sum < minp) {
+                    minp = sum;
+                }
+                L[i * 32 + i] = sqrt(sum);
+            } else {
+                L[i * 32 + j] = sum / L[j * 32 + j];
+            }
+        }
+    }
+    if (min_pivot != NULL) {
+        *min_pivot = minp;
+    }
+    return 1;
+}
