@@ -10,9 +10,9 @@
 
 const att_settings_t att_default_settings = {
     /* process model */
-    .rate_walk = EKF_C(10.0),
+    .rate_walk = EKF_C(2.0),
     .angle_walk = EKF_C(0.001),
-    .euler_rate_walk = EKF_C(0.05),
+    .euler_rate_rel = EKF_C(0.001),
     /* gyroscope */
     .gyro_noise = EKF_C(0.005),
     .gyro_gate = EKF_C(0.0),
@@ -48,6 +48,10 @@ const att_settings_t att_default_settings = {
 
 enum { SENSOR_GYRO = 0, SENSOR_ACCEL = 1, SENSOR_MAG = 2 };
 
+/* Smallest accepted LDL^T pivot relative to its variance: a margin far above the
+ * scalar's rounding, so that "positive definite" holds in exact arithmetic too. */
+#define ATT_PD_MARGIN (EKF_C(100) * EKF_SCALAR_EPS)
+
 static void count(uint32_t *c)
 {
     if (*c != UINT32_MAX) {
@@ -78,7 +82,7 @@ ekf_status_t att_settings_check(const att_settings_t *s)
         return EKF_ERR_NULL;
     }
     if (!in_range(s->rate_walk, EKF_C(1e-6), big) || !in_range(s->angle_walk, EKF_C(0), big) ||
-        !in_range(s->euler_rate_walk, EKF_C(1e-9), big) || !in_range(s->gyro_noise, EKF_C(1e-9), big) ||
+        !in_range(s->euler_rate_rel, EKF_C(1e-6), EKF_C(1)) || !in_range(s->gyro_noise, EKF_C(1e-9), big) ||
         !in_range(s->gyro_gate, EKF_C(0), big) || !in_range(s->gyro_range, EKF_C(1e-3), big) ||
         !in_range(s->gravity, EKF_C(0.1), big) || !in_range(s->accel_noise, EKF_C(1e-9), big) ||
         !in_range(s->accel_band, EKF_C(0), big) || !in_range(s->accel_reject, EKF_C(1e-6), big) ||
@@ -274,11 +278,13 @@ ekf_status_t att_align(att_ekf_t *f, const ekf_scalar_t accel[3], const ekf_scal
     f->P[ATT_PHI * ATT_N + ATT_PHI] = ekf_sq(s->init_tilt_sigma);
     f->P[ATT_THETA * ATT_N + ATT_THETA] = ekf_sq(s->init_tilt_sigma);
     f->P[ATT_PSI * ATT_N + ATT_PSI] = heading_var;
-    /* rates: zero with the rate uncertainty mapped into the Euler rates, plus an
-     * independent 10 % part so that P starts positive definite */
+    /* rates: zero with the rate uncertainty mapped into the Euler rates, plus their own
+     * relative error, so that P starts positive definite */
     att_gen_noise_jacobian(&t, g);
     add_rate_noise(f->P, g, ekf_sq(s->init_rate_sigma));
-    add_diag(f->P, ATT_PHID, 3, ekf_mul(EKF_C(0.01), ekf_sq(s->init_rate_sigma)));
+    for (i = ATT_PHID; i <= ATT_PSID; ++i) {
+        f->P[i * ATT_N + i] = ekf_mac(f->P[i * ATT_N + i], f->P[i * ATT_N + i], s->euler_rate_rel);
+    }
 
     if (s->mag_ref_norm > EKF_C(0)) {
         f->mag_ref_norm = s->mag_ref_norm;
@@ -327,6 +333,7 @@ ekf_status_t att_predict(att_ekf_t *f, ekf_scalar_t dt)
     ekf_scalar_t xn[ATT_N];
     ekf_scalar_t d[ATT_GEN_F_NNZ];
     ekf_scalar_t work[6 * ATT_N]; /* rows PHI..PSID of F differ from the identity */
+    ekf_scalar_t ldl[ATT_N * (ATT_N + 1) / 2];
     ekf_scalar_t g[9];
     att_trig_t tn;
     ekf_status_t st;
@@ -355,11 +362,13 @@ ekf_status_t att_predict(att_ekf_t *f, ekf_scalar_t dt)
         return note(f, st == EKF_ERR_NOT_FINITE ? EKF_ERR_NUMERIC : st);
     }
 
-    /* Q = G diag(rate_walk^2 dt) G^T + angle and Euler-rate random walks */
+    /* Q = G diag(rate_walk^2 dt) G^T + angle random walk + the Euler rates' own error */
     att_gen_noise_jacobian(&tn, g);
     add_rate_noise(f->P, g, ekf_mul(ekf_sq(s->rate_walk), dt));
     add_diag(f->P, ATT_PHI, 3, ekf_mul(ekf_sq(s->angle_walk), dt));
-    add_diag(f->P, ATT_PHID, 3, ekf_mul(ekf_sq(s->euler_rate_walk), dt));
+    for (i = ATT_PHID; i <= ATT_PSID; ++i) {
+        f->P[i * ATT_N + i] = ekf_mac(f->P[i * ATT_N + i], f->P[i * ATT_N + i], s->euler_rate_rel);
+    }
 
     for (i = 0; i < ATT_N; ++i) {
         f->x[i] = xn[i];
@@ -371,6 +380,14 @@ ekf_status_t att_predict(att_ekf_t *f, ekf_scalar_t dt)
     }
     update_gimbal_flag(f);
     limit_variances(f);
+    /* Rounding in F P F^T can make P indefinite when it is ill-conditioned (Euler rates
+     * near gimbal lock at high rates, very long steps); repair it, and say so. */
+    if (ekf_cov_ensure_pd(f->P, ATT_N, ATT_PD_MARGIN, s->var_floor, ldl) > 0) {
+        f->flags |= ATT_FLAG_COV_REPAIRED;
+        count(&f->diag.cov_repairs);
+    } else {
+        f->flags &= ~ATT_FLAG_COV_REPAIRED;
+    }
     if (ekf_cov_limit_variance(f->P, ATT_N, ATT_PSI, s->heading_var_max) ||
         !(f->P[ATT_PSI * ATT_N + ATT_PSI] < s->heading_var_max)) {
         f->flags |= ATT_FLAG_HEADING_LIMITED;
@@ -451,6 +468,11 @@ ekf_status_t att_update_gyro(att_ekf_t *f, const ekf_scalar_t gyro[3])
             count(&f->diag.gyro_fused);
         }
     }
+    /* the rates correlate with the angles: the update may have moved them too */
+    if (att_model_normalise(f->x, f->P)) {
+        count(&f->diag.remaps);
+    }
+    update_gimbal_flag(f);
     gate_result(f, SENSOR_GYRO, gated);
     if (gated) {
         f->flags |= ATT_FLAG_GYRO_GATED;

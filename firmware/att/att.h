@@ -33,8 +33,10 @@ typedef struct {
     /* process model */
     ekf_scalar_t rate_walk;       /* body-rate random walk, rad/s/sqrt(s): Var(dw) = rate_walk^2 dt */
     ekf_scalar_t angle_walk;      /* extra angle random walk, rad/sqrt(s) (model error) */
-    ekf_scalar_t euler_rate_walk; /* independent Euler-rate noise, rad/s/sqrt(s); > 0 keeps P
-                                     positive definite (docs/derivation.md) */
+    ekf_scalar_t euler_rate_rel;  /* independent error of the Euler-rate states per step, as a
+                                     fraction of their variance (dimensionless, > 0): the model
+                                     error of the discrete kinematics; keeps P well conditioned
+                                     (docs/derivation.md, "Conditioning") */
     /* gyroscope */
     ekf_scalar_t gyro_noise; /* white noise, 1 sigma per sample, rad/s */
     ekf_scalar_t gyro_gate;  /* innovation gate, sigmas; 0 = off */
@@ -86,6 +88,7 @@ extern const att_settings_t att_default_settings;
 #define ATT_FLAG_GATE_BYPASS      (1u << 9)  /* a gate is bypassed after gate_timeout */
 #define ATT_FLAG_HEADING_LIMITED  (1u << 10) /* heading variance at heading_var_max */
 #define ATT_FLAG_REMAPPED         (1u << 11) /* last predict: pitch passed +-90 deg, remapped */
+#define ATT_FLAG_COV_REPAIRED     (1u << 12) /* last predict: P was loaded to stay positive definite */
 
 /* Counters saturate at UINT32_MAX. Test ratios: innovation^2 / (gate^2 S), > 1 gated. */
 typedef struct {
@@ -101,6 +104,7 @@ typedef struct {
     uint32_t rejected;        /* calls refused for bad input (status >= EKF_ERR_NULL and < EKF_GATED) */
     uint32_t numeric;         /* updates refused with EKF_ERR_NUMERIC */
     uint32_t remaps;          /* pitch remaps through +-90 deg */
+    uint32_t cov_repairs;     /* predictions after which P needed diagonal loading */
     ekf_scalar_t gyro_ratio[3];
     ekf_scalar_t accel_ratio[3];
     ekf_scalar_t mag_ratio;

@@ -55,6 +55,8 @@ static void negate_row_col(ekf_scalar_t P[ATT_N * ATT_N], int i)
 int att_model_normalise(ekf_scalar_t x[ATT_N], ekf_scalar_t P[ATT_N * ATT_N])
 {
     int remapped = 0;
+    /* theta and theta + 2 pi are the same rotation (sin and cos unchanged) */
+    x[ATT_THETA] = ekf_wrap_pi(x[ATT_THETA]);
     if (x[ATT_THETA] > EKF_HALF_PI || x[ATT_THETA] < ekf_neg(EKF_HALF_PI)) {
         /* (phi, theta, psi) and (phi + pi, pi - theta, psi + pi) are the same rotation;
          * theta -> pi - theta is an odd map, so theta's rate and covariance change sign */

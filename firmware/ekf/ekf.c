@@ -249,3 +249,64 @@ int ekf_cov_limit_variance(ekf_scalar_t *P, uint8_t n, uint8_t i, ekf_scalar_t m
     /* the diagonal was scaled twice (scale^2), as a congruence requires */
     return 1;
 }
+
+int ekf_cov_is_pd(const ekf_scalar_t *P, uint8_t n, ekf_scalar_t rel_margin, ekf_scalar_t *work)
+{
+    /* LDL^T, row by row. work holds the packed lower triangle: row j starts at j(j+1)/2;
+     * its off-diagonal entries are L_jk and its diagonal entry is the pivot d_j. */
+    uint16_t j, k, m;
+    if (P == NULL || work == NULL || n == 0 || n > EKF_MAX_STATES) {
+        return 0;
+    }
+    for (j = 0; j < n; ++j) {
+        ekf_scalar_t *lj = &work[(uint32_t)j * (j + 1u) / 2u];
+        ekf_scalar_t dj = P[(uint32_t)j * n + j];
+        for (k = 0; k < j; ++k) {
+            const ekf_scalar_t *lk = &work[(uint32_t)k * (k + 1u) / 2u];
+            ekf_scalar_t v = P[(uint32_t)j * n + k];
+            for (m = 0; m < k; ++m) {
+                /* lk[k] is d_k, lk[m] is L_km, lj[m] is L_jm, work row m's diagonal is d_m */
+                v = ekf_sub(v, ekf_mul(ekf_mul(lj[m], lk[m]), work[(uint32_t)m * (m + 1u) / 2u + m]));
+            }
+            lj[k] = ekf_div(v, lk[k]);
+            dj = ekf_sub(dj, ekf_mul(ekf_mul(lj[k], lj[k]), lk[k]));
+        }
+        if (!ekf_isfinite(dj) || !(dj > EKF_C(0)) || !(dj >= ekf_mul(rel_margin, P[(uint32_t)j * n + j]))) {
+            return 0;
+        }
+        lj[j] = dj;
+    }
+    return 1;
+}
+
+int ekf_cov_ensure_pd(ekf_scalar_t *P, uint8_t n, ekf_scalar_t rel_margin, ekf_scalar_t floor,
+                      ekf_scalar_t *work)
+{
+    ekf_scalar_t lambda = ekf_mul(EKF_C(10), rel_margin);
+    int rounds = 0;
+    uint8_t i, j;
+    if (P == NULL || work == NULL || n == 0 || n > EKF_MAX_STATES) {
+        return 0;
+    }
+    while (!ekf_cov_is_pd(P, n, rel_margin, work)) {
+        ++rounds;
+        if (lambda > EKF_C(1)) {
+            /* the correlations themselves are broken: keep the variances only */
+            for (i = 0; i < n; ++i) {
+                for (j = 0; j < n; ++j) {
+                    if (i != j) {
+                        P[(uint32_t)i * n + j] = EKF_C(0);
+                    }
+                }
+                P[(uint32_t)i * n + i] = ekf_max(P[(uint32_t)i * n + i], floor);
+            }
+            break;
+        }
+        for (i = 0; i < n; ++i) {
+            const ekf_scalar_t pii = ekf_max(P[(uint32_t)i * n + i], floor);
+            P[(uint32_t)i * n + i] = ekf_mac(pii, pii, lambda);
+        }
+        lambda = ekf_mul(lambda, EKF_C(10));
+    }
+    return rounds;
+}

@@ -112,6 +112,26 @@ ekf_status_t ekf_update_scalar(ekf_scalar_t *x, ekf_scalar_t *P, uint8_t n, cons
  */
 int ekf_cov_limit_variance(ekf_scalar_t *P, uint8_t n, uint8_t i, ekf_scalar_t max_var);
 
+/*
+ * 1 if P is numerically positive definite: its LDL^T factorisation (computed in the
+ * scalar type) has every pivot d_j >= rel_margin * P_jj > 0. work: n (n + 1) / 2 scalars.
+ * 0 otherwise (also for n out of range or a NULL argument).
+ */
+int ekf_cov_is_pd(const ekf_scalar_t *P, uint8_t n, ekf_scalar_t rel_margin, ekf_scalar_t *work);
+
+/*
+ * Guarantees that P passes ekf_cov_is_pd(P, n, rel_margin): if it does not, the diagonal is
+ * loaded, P_ii <- max(P_ii, floor) (1 + lambda), with lambda = 10 rel_margin growing tenfold
+ * per round up to 1; if even that fails, the off-diagonal entries are cleared (a positive
+ * diagonal matrix). Relative loading keeps the correlation structure and only shrinks
+ * correlation coefficients by 1 / (1 + lambda).
+ * Returns the number of repair rounds: 0 if P was already positive definite.
+ * A model calls it where rounding can break definiteness (docs/derivation.md,
+ * "Covariance bounds and definiteness").
+ */
+int ekf_cov_ensure_pd(ekf_scalar_t *P, uint8_t n, ekf_scalar_t rel_margin, ekf_scalar_t floor,
+                      ekf_scalar_t *work);
+
 /* 1 if every entry of v[0..len) is finite. */
 int ekf_all_finite(const ekf_scalar_t *v, uint16_t len);
 

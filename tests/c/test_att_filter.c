@@ -1,0 +1,470 @@
+/*
+ * test_att_filter.c - the attitude estimator end to end on simulated data with known
+ * truth, and every bad-input class. Built for float and double.
+ *
+ * Errors are rotation angles between estimate and truth (meaningful at any attitude).
+ */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "att.h"
+#include "att_model.h"
+#include "testsim.h"
+#include "unity.h"
+
+#define DEG (3.14159265358979323846 / 180.0)
+
+void setUp(void) {}
+void tearDown(void) {}
+
+static double est_error(const att_ekf_t *f, const ts_sim_t *s)
+{
+    ekf_scalar_t e[3];
+    double ed[3], et[3];
+    att_get_euler(f, e);
+    ed[0] = (double)e[0];
+    ed[1] = (double)e[1];
+    ed[2] = (double)e[2];
+    ts_sim_euler(s, et);
+    return ts_euler_angle_between(ed, et);
+}
+
+static void init_default(att_ekf_t *f)
+{
+    TEST_ASSERT_EQUAL_INT(EKF_OK, att_init(f, &att_default_settings));
+}
+
+/* Aligns on the first align_samples samples of the simulator at rest. */
+static void align_on(att_ekf_t *f, ts_sim_t *s)
+{
+    static const double zero[3] = {0.0, 0.0, 0.0};
+    unsigned k;
+    for (k = 0; k < f->settings.align_samples; ++k) {
+        att_sample_t smp;
+        ts_sim_step(s, zero, NULL, &smp);
+        TEST_ASSERT_EQUAL_INT(EKF_OK, att_step(f, &smp, NULL));
+    }
+    TEST_ASSERT_TRUE((att_flags(f) & ATT_FLAG_ALIGNED) != 0u);
+}
+
+/* ----- convergence ----- */
+
+/* Static body, filter aligned 20 deg away from the truth: converges within 0.5 deg. */
+static void test_static_convergence_from_wrong_start(void)
+{
+    static const double attitudes[][3] = {
+        {0.0, 0.0, 0.0}, {0.5, -0.3, 2.0}, {-1.2, 0.8, -2.5}, {2.9, 0.2, 1.0}, {0.1, -1.3, 0.4},
+    };
+    size_t a;
+    for (a = 0; a < sizeof attitudes / sizeof attitudes[0]; ++a) {
+        ts_sim_cfg_t cfg;
+        ts_sim_t sim;
+        att_ekf_t f;
+        att_sample_t smp;
+        double R[9], acc[3], mag[3], err = 0.0, err0;
+        ekf_scalar_t acc_s[3], mag_s[3];
+        static const double zero[3] = {0.0, 0.0, 0.0};
+        int k;
+        ts_sim_default(&cfg);
+        ts_sim_init(&sim, &cfg, 100 + a, attitudes[a][0], attitudes[a][1], attitudes[a][2]);
+        init_default(&f);
+        /* align on a wrong attitude: roll +12, pitch -10, yaw +12 deg off */
+        ts_euler_to_R(attitudes[a][0] + 12 * DEG, attitudes[a][1] - 10 * DEG, attitudes[a][2] + 12 * DEG, R);
+        for (k = 0; k < 3; ++k) {
+            acc[k] = R[6 + k] * cfg.gravity;
+            mag[k] = R[3 + k] * cfg.mag_h - R[6 + k] * cfg.mag_v;
+            acc_s[k] = (ekf_scalar_t)acc[k];
+            mag_s[k] = (ekf_scalar_t)mag[k];
+        }
+        TEST_ASSERT_EQUAL_INT(EKF_OK, att_align(&f, acc_s, mag_s));
+        err0 = est_error(&f, &sim);
+        TEST_ASSERT_TRUE(err0 > 10 * DEG);
+        for (k = 0; k < 6000; ++k) { /* 60 s at 100 Hz */
+            ts_sim_step(&sim, zero, NULL, &smp);
+            (void)att_step(&f, &smp, NULL);
+        }
+        err = est_error(&f, &sim);
+        printf("static attitude (%.1f, %.1f, %.1f) deg, start %.1f deg off: final error %.3f deg\n",
+               attitudes[a][0] / DEG, attitudes[a][1] / DEG, attitudes[a][2] / DEG, err0 / DEG, err / DEG);
+        TEST_ASSERT_TRUE_MESSAGE(err < 0.5 * DEG, "static attitude did not converge within 0.5 deg");
+    }
+}
+
+typedef struct {
+    const char *name;
+    double w[3];      /* rad/s, body */
+    double start[3];  /* initial Euler angles, rad */
+} rate_case_t;
+
+static double run_constant_rate(const rate_case_t *c, int use_mag, double *max_err)
+{
+    ts_sim_cfg_t cfg;
+    ts_sim_t sim;
+    att_ekf_t f;
+    att_sample_t smp;
+    double sum = 0.0;
+    int k, n = 0;
+    ts_sim_default(&cfg);
+    ts_sim_init(&sim, &cfg, 7, c->start[0], c->start[1], c->start[2]);
+    init_default(&f);
+    align_on(&f, &sim);
+    *max_err = 0.0;
+    for (k = 0; k < 6000; ++k) { /* 60 s at 100 Hz */
+        ts_sim_step(&sim, c->w, NULL, &smp);
+        if (!use_mag) {
+            smp.valid &= (uint8_t)~ATT_HAS_MAG;
+        }
+        (void)att_step(&f, &smp, NULL);
+        if (k >= 100) { /* score after the first second */
+            double e = est_error(&f, &sim);
+            if (!use_mag) {
+                /* 6D: heading is unobservable; score inclination only */
+                ekf_scalar_t eu[3];
+                double ed[3], et[3];
+                att_get_euler(&f, eu);
+                ts_sim_euler(&sim, et);
+                ed[0] = (double)eu[0];
+                ed[1] = (double)eu[1];
+                ed[2] = et[2];
+                e = ts_euler_angle_between(ed, et);
+            }
+            sum += e * e;
+            ++n;
+            if (e > *max_err) {
+                *max_err = e;
+            }
+        }
+    }
+    printf("  (covariance repairs: %u)\n", (unsigned)att_diag(&f)->cov_repairs);
+    TEST_ASSERT_EQUAL_UINT32(0u, att_diag(&f)->cov_repairs);
+    return sqrt(sum / n);
+}
+
+static void test_constant_rate_rotations_tracked(void)
+{
+    static const rate_case_t cases[] = {
+        {"yaw spin 1 rad/s, tilted 20 deg", {0.0, 0.342, 0.940}, {0.349, 0.0, 0.0}},
+        {"roll spin 0.5 rad/s (roll wraps)", {0.5, 0.0, 0.0}, {0.0, 0.1, 0.5}},
+        {"axis (1,1,1)/sqrt3 at 0.3 rad/s", {0.1732, 0.1732, 0.1732}, {0.0, 0.0, 0.0}},
+        {"pitch-yaw 0.2/0.6 rad/s", {0.0, 0.2, 0.6}, {0.2, -0.2, 1.0}},
+    };
+    size_t i;
+    for (i = 0; i < sizeof cases / sizeof cases[0]; ++i) {
+        double max_err;
+        const double rms = run_constant_rate(&cases[i], 1, &max_err);
+        printf("constant rate, %s: RMS error %.3f deg (max %.3f)\n", cases[i].name, rms / DEG, max_err / DEG);
+        TEST_ASSERT_TRUE_MESSAGE(rms < 2.0 * DEG, "constant-rate rotation not tracked within 2 deg RMS");
+    }
+}
+
+static void test_constant_rate_without_magnetometer(void)
+{
+    static const rate_case_t c = {"6D yaw spin", {0.0, 0.342, 0.940}, {0.349, 0.0, 0.0}};
+    double max_err;
+    const double rms = run_constant_rate(&c, 0, &max_err);
+    printf("constant rate 6D (inclination only): RMS %.3f deg\n", rms / DEG);
+    TEST_ASSERT_TRUE(rms < 2.0 * DEG);
+}
+
+/* Pitch up through +90 deg (the body goes over the top) and come back to rest: the filter
+ * stays finite, flags gimbal lock while near it, remaps the Euler triple, and recovers. */
+static void test_gimbal_lock_pass_and_recovery(void)
+{
+    ts_sim_cfg_t cfg;
+    ts_sim_t sim;
+    att_ekf_t f;
+    att_sample_t smp;
+    static const double pitch_rate[3] = {0.0, 0.5, 0.0};
+    static const double zero[3] = {0.0, 0.0, 0.0};
+    int k, saw_lock = 0;
+    double err;
+    ts_sim_default(&cfg);
+    ts_sim_init(&sim, &cfg, 9, 0.0, 0.0, 0.3);
+    init_default(&f);
+    align_on(&f, &sim);
+    for (k = 0; k < 500; ++k) { /* 5 s at 0.5 rad/s: 143 deg of pitch rotation */
+        ts_sim_step(&sim, pitch_rate, NULL, &smp);
+        (void)att_step(&f, &smp, NULL);
+        TEST_ASSERT_TRUE(ekf_all_finite(att_state(&f), ATT_N));
+        TEST_ASSERT_TRUE(ekf_all_finite(att_covariance(&f), ATT_N * ATT_N));
+        if (att_flags(&f) & ATT_FLAG_GIMBAL_LOCK) {
+            saw_lock = 1;
+        }
+    }
+    for (k = 0; k < 3000; ++k) { /* 30 s at rest */
+        ts_sim_step(&sim, zero, NULL, &smp);
+        (void)att_step(&f, &smp, NULL);
+    }
+    err = est_error(&f, &sim);
+    printf("over the top in pitch and back to rest: lock flagged %d, remaps %u, covariance repairs %u, final error "
+           "%.3f deg\n", saw_lock, (unsigned)att_diag(&f)->remaps, (unsigned)att_diag(&f)->cov_repairs, err / DEG);
+    TEST_ASSERT_TRUE(saw_lock);
+    TEST_ASSERT_TRUE(att_diag(&f)->remaps >= 1u);
+    TEST_ASSERT_FALSE(att_flags(&f) & ATT_FLAG_GIMBAL_LOCK);
+    TEST_ASSERT_TRUE(err < 1.0 * DEG);
+}
+
+/* The remap (phi+pi, pi-theta, psi+pi) is the same rotation. */
+static void test_remap_is_same_rotation(void)
+{
+    ekf_scalar_t x[ATT_N] = {0};
+    double before[3], after[3];
+    x[ATT_PHI] = EKF_C(0.4);
+    x[ATT_THETA] = EKF_C(1.9); /* beyond +90 deg */
+    x[ATT_PSI] = EKF_C(-0.7);
+    x[ATT_THETAD] = EKF_C(0.3);
+    before[0] = (double)x[ATT_PHI];
+    before[1] = (double)x[ATT_THETA];
+    before[2] = (double)x[ATT_PSI];
+    TEST_ASSERT_EQUAL_INT(1, att_model_normalise(x, NULL));
+    after[0] = (double)x[ATT_PHI];
+    after[1] = (double)x[ATT_THETA];
+    after[2] = (double)x[ATT_PSI];
+    TEST_ASSERT_TRUE(after[1] <= 1.5707964 && after[1] >= -1.5707964);
+    TEST_ASSERT_TRUE(ts_euler_angle_between(before, after) < 1e-5);
+    TEST_ASSERT_TRUE(x[ATT_THETAD] < EKF_C(0));
+}
+
+static void test_heading_capped_without_magnetometer(void)
+{
+    ts_sim_cfg_t cfg;
+    ts_sim_t sim;
+    att_ekf_t f;
+    att_sample_t smp;
+    static const double zero[3] = {0.0, 0.0, 0.0};
+    ekf_scalar_t var[ATT_N];
+    int k;
+    ts_sim_default(&cfg);
+    ts_sim_init(&sim, &cfg, 5, 0.1, 0.1, 0.1);
+    init_default(&f);
+    for (k = 0; k < 20000; ++k) {
+        ts_sim_step(&sim, zero, NULL, &smp);
+        smp.valid = ATT_HAS_GYRO | ATT_HAS_ACCEL;
+        (void)att_step(&f, &smp, NULL);
+    }
+    att_get_variances(&f, var);
+    TEST_ASSERT_TRUE(var[ATT_PSI] <= f.settings.heading_var_max * EKF_C(1.0001));
+    TEST_ASSERT_TRUE(att_flags(&f) & ATT_FLAG_HEADING_LIMITED);
+    TEST_ASSERT_TRUE(ts_is_positive_definite(att_covariance(&f), ATT_N, NULL));
+    /* a magnetometer arriving later sets the heading */
+    for (k = 0; k < 2000; ++k) {
+        ts_sim_step(&sim, zero, NULL, &smp);
+        (void)att_step(&f, &smp, NULL);
+    }
+    TEST_ASSERT_TRUE(est_error(&f, &sim) < 1.0 * DEG);
+}
+
+static void test_linear_acceleration_and_mag_disturbance_flags(void)
+{
+    ts_sim_cfg_t cfg;
+    ts_sim_t sim;
+    att_ekf_t f;
+    att_sample_t smp;
+    static const double zero[3] = {0.0, 0.0, 0.0};
+    /* vertical, so that |a| changes by the full amount: 5 m/s^2 is beyond accel_reject
+     * (3 m/s^2), 1 m/s^2 is beyond accel_band (0.5 m/s^2) but not rejected */
+    static const double push[3] = {0.0, 0.0, 5.0};
+    static const double nudge[3] = {0.0, 0.0, 1.0};
+    ts_sim_default(&cfg);
+    ts_sim_init(&sim, &cfg, 6, 0.0, 0.0, 0.0);
+    init_default(&f);
+    align_on(&f, &sim);
+    ts_sim_step(&sim, zero, push, &smp);
+    TEST_ASSERT_EQUAL_INT(EKF_SKIPPED, att_step(&f, &smp, NULL));
+    TEST_ASSERT_TRUE(att_flags(&f) & ATT_FLAG_ACCEL_REJECTED);
+    ts_sim_step(&sim, zero, nudge, &smp);
+    (void)att_step(&f, &smp, NULL);
+    TEST_ASSERT_TRUE(att_flags(&f) & ATT_FLAG_ACCEL_DEWEIGHTED);
+    TEST_ASSERT_FALSE(att_flags(&f) & ATT_FLAG_ACCEL_REJECTED);
+    /* a field 50 % stronger than the reference is a disturbance */
+    ts_sim_step(&sim, zero, NULL, &smp);
+    smp.mag[0] = smp.mag[0] * EKF_C(1.5);
+    smp.mag[1] = smp.mag[1] * EKF_C(1.5);
+    smp.mag[2] = smp.mag[2] * EKF_C(1.5);
+    TEST_ASSERT_EQUAL_INT(EKF_SKIPPED, att_step(&f, &smp, NULL));
+    TEST_ASSERT_TRUE(att_flags(&f) & ATT_FLAG_MAG_DISTURBED);
+    TEST_ASSERT_TRUE(att_diag(&f)->mag_skipped >= 1u);
+}
+
+/* ----- bad input ----- */
+
+typedef struct {
+    ekf_scalar_t x[ATT_N];
+    ekf_scalar_t P[ATT_N * ATT_N];
+    uint32_t flags;
+} snapshot_t;
+
+static void snap(const att_ekf_t *f, snapshot_t *s)
+{
+    memcpy(s->x, f->x, sizeof s->x);
+    memcpy(s->P, f->P, sizeof s->P);
+    s->flags = f->flags;
+}
+
+static void assert_unchanged(const att_ekf_t *f, const snapshot_t *s)
+{
+    TEST_ASSERT_EQUAL_MEMORY(s->x, f->x, sizeof s->x);
+    TEST_ASSERT_EQUAL_MEMORY(s->P, f->P, sizeof s->P);
+    TEST_ASSERT_EQUAL_UINT32(s->flags, f->flags);
+}
+
+static void aligned_filter(att_ekf_t *f, ts_sim_t *sim)
+{
+    ts_sim_cfg_t cfg;
+    att_sample_t smp;
+    static const double w[3] = {0.1, -0.2, 0.3};
+    int k;
+    ts_sim_default(&cfg);
+    ts_sim_init(sim, &cfg, 3, 0.2, -0.1, 0.5);
+    init_default(f);
+    align_on(f, sim);
+    for (k = 0; k < 50; ++k) {
+        ts_sim_step(sim, w, NULL, &smp);
+        (void)att_step(f, &smp, NULL);
+    }
+}
+
+static void test_bad_settings_rejected(void)
+{
+    att_ekf_t f;
+    att_settings_t s = att_default_settings;
+    TEST_ASSERT_EQUAL_INT(EKF_OK, att_settings_check(&s));
+    s.gyro_noise = EKF_C(-1);
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_SETTINGS, att_init(&f, &s));
+    s = att_default_settings;
+    s.accel_noise = (ekf_scalar_t)NAN;
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_SETTINGS, att_init(&f, &s));
+    s = att_default_settings;
+    s.gimbal_limit = EKF_HALF_PI;
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_SETTINGS, att_init(&f, &s));
+    s = att_default_settings;
+    s.align_samples = 0u;
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_SETTINGS, att_init(&f, &s));
+    s = att_default_settings;
+    s.dt_max = (ekf_scalar_t)INFINITY;
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_SETTINGS, att_init(&f, &s));
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_init(NULL, &att_default_settings));
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_init(&f, NULL));
+}
+
+static void test_not_initialised(void)
+{
+    att_ekf_t f;
+    snapshot_t s;
+    const ekf_scalar_t v[3] = {EKF_C(0), EKF_C(0), EKF_C(9.81)};
+    att_sample_t smp;
+    memset(&smp, 0, sizeof smp);
+    init_default(&f);
+    snap(&f, &s);
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_INITIALISED, att_predict(&f, EKF_C(0.01)));
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_INITIALISED, att_update_gyro(&f, v));
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_INITIALISED, att_update_accel(&f, v));
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_INITIALISED, att_update_mag(&f, v));
+    smp.valid = ATT_HAS_GYRO; /* no accelerometer: nothing to align on */
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_INITIALISED, att_step(&f, &smp, NULL));
+    assert_unchanged(&f, &s);
+    TEST_ASSERT_EQUAL_UINT32(5u, att_diag(&f)->rejected);
+}
+
+static void test_every_bad_input_class_leaves_state_unchanged(void)
+{
+    att_ekf_t f;
+    ts_sim_t sim;
+    snapshot_t s;
+    const ekf_scalar_t nan_v = (ekf_scalar_t)NAN, inf_v = (ekf_scalar_t)INFINITY;
+    ekf_scalar_t good[3] = {EKF_C(0.1), EKF_C(0.2), EKF_C(9.7)};
+    ekf_scalar_t bad[3];
+    uint32_t rejected;
+    int k;
+    aligned_filter(&f, &sim);
+    snap(&f, &s);
+    rejected = att_diag(&f)->rejected;
+
+    /* time step */
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_DT_NONPOSITIVE, att_predict(&f, EKF_C(0)));
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_DT_NONPOSITIVE, att_predict(&f, EKF_C(-0.01)));
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, att_predict(&f, nan_v));
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, att_predict(&f, inf_v));
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_DT_TOO_LARGE, att_predict(&f, EKF_C(0.51)));
+    assert_unchanged(&f, &s);
+
+    /* each sensor: NaN, +Inf, -Inf in each component; out of range; NULL */
+    for (k = 0; k < 3; ++k) {
+        memcpy(bad, good, sizeof bad);
+        bad[k] = nan_v;
+        TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, att_update_gyro(&f, bad));
+        TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, att_update_accel(&f, bad));
+        TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, att_update_mag(&f, bad));
+        bad[k] = inf_v;
+        TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, att_update_gyro(&f, bad));
+        TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, att_update_accel(&f, bad));
+        TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, att_update_mag(&f, bad));
+        bad[k] = -inf_v;
+        TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, att_update_accel(&f, bad));
+        memcpy(bad, good, sizeof bad);
+        bad[k] = EKF_C(41); /* gyro_range 40 rad/s */
+        TEST_ASSERT_EQUAL_INT(EKF_ERR_RANGE, att_update_gyro(&f, bad));
+        bad[k] = EKF_C(-161); /* accel_range 160 m/s^2 */
+        TEST_ASSERT_EQUAL_INT(EKF_ERR_RANGE, att_update_accel(&f, bad));
+        bad[k] = EKF_C(5001); /* mag_range 5000 */
+        TEST_ASSERT_EQUAL_INT(EKF_ERR_RANGE, att_update_mag(&f, bad));
+    }
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_update_gyro(&f, NULL));
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_update_accel(&f, NULL));
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_update_mag(&f, NULL));
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_step(&f, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_step(NULL, NULL, NULL));
+    assert_unchanged(&f, &s);
+    /* 5 dt + 3*(3+3+1+3) + 3 NULL sensor calls; att_step(NULL...) cannot count */
+    TEST_ASSERT_EQUAL_UINT32(rejected + 5u + 30u + 3u, att_diag(&f)->rejected);
+
+    /* a bad dt refuses the whole sample, state unchanged */
+    {
+        att_sample_t smp;
+        att_step_report_t rep;
+        static const double w[3] = {0.1, 0.0, 0.0};
+        ts_sim_step(&sim, w, NULL, &smp);
+        smp.dt = EKF_C(-1);
+        TEST_ASSERT_EQUAL_INT(EKF_ERR_DT_NONPOSITIVE, att_step(&f, &smp, &rep));
+        TEST_ASSERT_EQUAL_INT(EKF_ERR_DT_NONPOSITIVE, rep.predict);
+        assert_unchanged(&f, &s);
+        /* a bad magnetometer alone: gyro and accel still fused, mag refused, state valid */
+        smp.dt = EKF_C(0.01);
+        smp.mag[1] = nan_v;
+        TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, att_step(&f, &smp, &rep));
+        TEST_ASSERT_EQUAL_INT(EKF_OK, rep.gyro);
+        TEST_ASSERT_EQUAL_INT(EKF_OK, rep.predict);
+        TEST_ASSERT_EQUAL_INT(EKF_OK, rep.accel);
+        TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, rep.mag);
+        TEST_ASSERT_TRUE(ekf_all_finite(att_state(&f), ATT_N));
+        TEST_ASSERT_TRUE(ts_is_positive_definite(att_covariance(&f), ATT_N, NULL));
+    }
+    /* alignment input errors */
+    {
+        att_ekf_t g;
+        const ekf_scalar_t zero_acc[3] = {EKF_C(0), EKF_C(0), EKF_C(0)};
+        init_default(&g);
+        TEST_ASSERT_EQUAL_INT(EKF_ERR_RANGE, att_align(&g, zero_acc, NULL));
+        bad[0] = nan_v;
+        TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, att_align(&g, bad, NULL));
+        TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, att_align(&g, good, bad));
+        TEST_ASSERT_FALSE(att_flags(&g) & ATT_FLAG_ALIGNED);
+    }
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_static_convergence_from_wrong_start);
+    RUN_TEST(test_constant_rate_rotations_tracked);
+    RUN_TEST(test_constant_rate_without_magnetometer);
+    RUN_TEST(test_gimbal_lock_pass_and_recovery);
+    RUN_TEST(test_remap_is_same_rotation);
+    RUN_TEST(test_heading_capped_without_magnetometer);
+    RUN_TEST(test_linear_acceleration_and_mag_disturbance_flags);
+    RUN_TEST(test_bad_settings_rejected);
+    RUN_TEST(test_not_initialised);
+    RUN_TEST(test_every_bad_input_class_leaves_state_unchanged);
+    return UNITY_END();
+}
