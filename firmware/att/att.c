@@ -327,13 +327,12 @@ static void limit_variances(att_ekf_t *f)
     (void)ekf_cov_limit_variance(f->P, ATT_N, ATT_THETA, ekf_sq(EKF_HALF_PI));
 }
 
-ekf_status_t att_predict(att_ekf_t *f, ekf_scalar_t dt)
+static ekf_status_t predict_stage(att_ekf_t *f, ekf_scalar_t dt)
 {
     const att_settings_t *s;
     ekf_scalar_t xn[ATT_N];
     ekf_scalar_t d[ATT_GEN_F_NNZ];
     ekf_scalar_t work[6 * ATT_N]; /* rows PHI..PSID of F differ from the identity */
-    ekf_scalar_t ldl[ATT_N * (ATT_N + 1) / 2];
     ekf_scalar_t g[9];
     att_trig_t tn;
     ekf_status_t st;
@@ -380,14 +379,6 @@ ekf_status_t att_predict(att_ekf_t *f, ekf_scalar_t dt)
     }
     update_gimbal_flag(f);
     limit_variances(f);
-    /* Rounding in F P F^T can make P indefinite when it is ill-conditioned (Euler rates
-     * near gimbal lock at high rates, very long steps); repair it, and say so. */
-    if (ekf_cov_ensure_pd(f->P, ATT_N, ATT_PD_MARGIN, s->var_floor, ldl) > 0) {
-        f->flags |= ATT_FLAG_COV_REPAIRED;
-        count(&f->diag.cov_repairs);
-    } else {
-        f->flags &= ~ATT_FLAG_COV_REPAIRED;
-    }
     if (ekf_cov_limit_variance(f->P, ATT_N, ATT_PSI, s->heading_var_max) ||
         !(f->P[ATT_PSI * ATT_N + ATT_PSI] < s->heading_var_max)) {
         f->flags |= ATT_FLAG_HEADING_LIMITED;
@@ -433,7 +424,7 @@ static void gate_result(att_ekf_t *f, int sensor, int gated)
     }
 }
 
-ekf_status_t att_update_gyro(att_ekf_t *f, const ekf_scalar_t gyro[3])
+static ekf_status_t stage_gyro(att_ekf_t *f, const ekf_scalar_t gyro[3])
 {
     static const ekf_scalar_t one = EKF_C(1);
     ekf_scalar_t gate, r_var;
@@ -482,7 +473,7 @@ ekf_status_t att_update_gyro(att_ekf_t *f, const ekf_scalar_t gyro[3])
     return EKF_OK;
 }
 
-ekf_status_t att_update_accel(att_ekf_t *f, const ekf_scalar_t accel[3])
+static ekf_status_t stage_accel(att_ekf_t *f, const ekf_scalar_t accel[3])
 {
     const att_settings_t *s;
     ekf_scalar_t norm, err, r_var, gate, phi0, theta0;
@@ -576,7 +567,7 @@ static void reset_heading(att_ekf_t *f, ekf_scalar_t heading, ekf_scalar_t var)
     f->x[ATT_PSI] = heading;
 }
 
-ekf_status_t att_update_mag(att_ekf_t *f, const ekf_scalar_t mag[3])
+static ekf_status_t stage_mag(att_ekf_t *f, const ekf_scalar_t mag[3])
 {
     static const uint8_t idx = ATT_PSI;
     static const ekf_scalar_t one = EKF_C(1);
@@ -650,6 +641,37 @@ ekf_status_t att_update_mag(att_ekf_t *f, const ekf_scalar_t mag[3])
     (void)att_model_normalise(f->x, f->P);
     return EKF_OK;
 }
+
+/* Rounding in F P F^T and in the updates can make P indefinite when it is ill-conditioned
+ * (Euler rates near gimbal lock at high rates, very long steps, float); repair it once
+ * per public call, and say so (docs/derivation.md, "Covariance bounds"). */
+static void guard_covariance(att_ekf_t *f)
+{
+    ekf_scalar_t ldl[ATT_N * (ATT_N + 1) / 2];
+    if ((f->flags & ATT_FLAG_ALIGNED) == 0u) {
+        return;
+    }
+    if (ekf_cov_ensure_pd(f->P, ATT_N, ATT_PD_MARGIN, f->settings.var_floor, ldl) > 0) {
+        f->flags |= ATT_FLAG_COV_REPAIRED;
+        count(&f->diag.cov_repairs);
+    } else {
+        f->flags &= ~ATT_FLAG_COV_REPAIRED;
+    }
+}
+
+/* The public stages: each one leaves P positive definite. */
+static ekf_status_t guarded(att_ekf_t *f, ekf_status_t st)
+{
+    if (f != NULL) {
+        guard_covariance(f);
+    }
+    return st;
+}
+
+ekf_status_t att_predict(att_ekf_t *f, ekf_scalar_t dt) { return guarded(f, predict_stage(f, dt)); }
+ekf_status_t att_update_gyro(att_ekf_t *f, const ekf_scalar_t gyro[3]) { return guarded(f, stage_gyro(f, gyro)); }
+ekf_status_t att_update_accel(att_ekf_t *f, const ekf_scalar_t accel[3]) { return guarded(f, stage_accel(f, accel)); }
+ekf_status_t att_update_mag(att_ekf_t *f, const ekf_scalar_t mag[3]) { return guarded(f, stage_mag(f, mag)); }
 
 /* Alignment phase of att_step: average accelerometer (and magnetometer) samples. */
 static ekf_status_t align_step(att_ekf_t *f, const att_sample_t *sm, att_step_report_t *rep)
@@ -729,18 +751,19 @@ ekf_status_t att_step(att_ekf_t *f, const att_sample_t *sample, att_step_report_
     /* The gyro sample describes the rotation over the interval ending now: fuse it
      * before propagating, so the angles integrate it (docs/derivation.md, "Step order"). */
     if ((sample->valid & ATT_HAS_GYRO) != 0u) {
-        rep->gyro = att_update_gyro(f, sample->gyro);
+        rep->gyro = stage_gyro(f, sample->gyro);
     }
-    rep->predict = att_predict(f, sample->dt);
+    rep->predict = predict_stage(f, sample->dt);
     if (rep->predict == EKF_OK) {
         count(&f->diag.steps);
     }
     if ((sample->valid & ATT_HAS_ACCEL) != 0u) {
-        rep->accel = att_update_accel(f, sample->accel);
+        rep->accel = stage_accel(f, sample->accel);
     }
     if ((sample->valid & ATT_HAS_MAG) != 0u) {
-        rep->mag = att_update_mag(f, sample->mag);
+        rep->mag = stage_mag(f, sample->mag);
     }
+    guard_covariance(f);
     if (rep->predict != EKF_OK) {
         return rep->predict;
     }

@@ -88,7 +88,7 @@ extern const att_settings_t att_default_settings;
 #define ATT_FLAG_GATE_BYPASS      (1u << 9)  /* a gate is bypassed after gate_timeout */
 #define ATT_FLAG_HEADING_LIMITED  (1u << 10) /* heading variance at heading_var_max */
 #define ATT_FLAG_REMAPPED         (1u << 11) /* last predict: pitch passed +-90 deg, remapped */
-#define ATT_FLAG_COV_REPAIRED     (1u << 12) /* last predict: P was loaded to stay positive definite */
+#define ATT_FLAG_COV_REPAIRED     (1u << 12) /* last call: P was loaded to stay positive definite */
 
 /* Counters saturate at UINT32_MAX. Test ratios: innovation^2 / (gate^2 S), > 1 gated. */
 typedef struct {
