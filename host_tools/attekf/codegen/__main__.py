@@ -13,10 +13,14 @@ from pathlib import Path
 from typing import Callable, Dict, List, Tuple
 
 from . import attitude
+from . import constacc, radar, slam
 
 # (output directory relative to the repository root, builder)
 TARGETS: List[Tuple[str, Callable[[], Dict[str, str]]]] = [
     ("firmware/att", attitude.build),
+    ("firmware/models", constacc.build),
+    ("firmware/models", radar.build),
+    ("firmware/models", slam.build),
 ]
 
 
