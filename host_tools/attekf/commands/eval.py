@@ -1,0 +1,228 @@
+"""`attekf eval`: run the C estimator over recordings (or take a recorded output) and score it
+against the ground truth with the BROAD definitions."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+from typing import Dict, List
+
+from .. import __version__
+from ..io import InputError, read_output_csv, read_recording, write_output_csv
+
+NAME = "eval"
+HELP = "evaluate the estimator against ground truth (table, JSON, plots)"
+DESCRIPTION = """\
+Runs the C estimator (through the binding: the same code as the firmware) over each
+recording, or takes a recorded estimator output (--output-csv), and computes the BROAD
+orientation errors: error quaternion e = q_est * inv(q_ref) in the earth frame; total,
+heading and inclination angle; RMSE over the 'movement' samples, degrees. A directory
+evaluates every .csv/.hdf5/.h5 recording in it, with a per-trial and a mean table.
+
+Outputs: the table on stdout; with --out DIR also DIR/table.txt, DIR/results.json and one
+plot per trial DIR/<trial>.png (Euler angles vs truth; errors with the filter's 3-sigma
+bounds). Without magnetometer (--no-mag, or none in the file) the scoring is 6D: the mean
+heading offset is removed first (docs/host_tools.md).
+
+examples:
+  attekf eval out/demo/undisturbed.csv --out out/eval
+  attekf eval /work/shared/data/broad --out out/broad --no-plot
+  attekf eval trial.csv --output-csv recorded.csv
+  attekf eval trial.csv --set accel_noise=0.3 --set mag_gate=0
+  attekf eval --list-settings
+"""
+
+RECORDING_EXTS = (".csv", ".hdf5", ".h5")
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("inputs", nargs="*", metavar="RECORDING",
+                   help="recording files (.csv, .hdf5, .h5) or directories of them")
+    p.add_argument("--output-csv", metavar="FILE",
+                   help="score this recorded estimator output instead of running the estimator "
+                        "(one recording only; format in docs/host_tools.md)")
+    p.add_argument("--time-offset", type=float, default=0.0, metavar="S",
+                   help="added to the output file's t_s before matching it to samples (default 0)")
+    p.add_argument("--scalar", choices=("float", "double"), default="float",
+                   help="which C build runs: float (what ships, default) or double")
+    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                   help="change an estimator setting (repeatable; see --list-settings)")
+    p.add_argument("--settings", metavar="FILE.json", help="estimator settings from a JSON object {name: value}")
+    p.add_argument("--list-settings", action="store_true", help="print the estimator's settings and exit")
+    p.add_argument("--no-mag", action="store_true",
+                   help="run without the magnetometer and score 6D (mean heading offset removed)")
+    p.add_argument("--out", metavar="DIR", help="write table.txt, results.json and plots into DIR")
+    p.add_argument("--json", metavar="FILE", help="write the results as JSON here (default DIR/results.json)")
+    p.add_argument("--no-plot", action="store_true", help="no plots")
+    p.add_argument("--save-output", action="store_true",
+                   help="also write each run's estimator output as DIR/<trial>_output.csv")
+    p.add_argument("--no-unit-check", action="store_true",
+                   help="accept data whose magnitudes look like other units (deg/s, g, gauss)")
+
+
+def _fail(msg: str, code: int = 1) -> int:
+    print(f"attekf eval: error: {msg}", file=sys.stderr)
+    return code
+
+
+def _collect(inputs: List[str]) -> List[str]:
+    files: List[str] = []
+    for path in inputs:
+        if os.path.isdir(path):
+            found = sorted(os.path.join(path, f) for f in os.listdir(path)
+                           if f.lower().endswith(RECORDING_EXTS) and not f.endswith("_output.csv")
+                           and os.path.isfile(os.path.join(path, f)))
+            if not found:
+                raise InputError(f"{path}: no recordings (.csv, .hdf5, .h5) in this directory")
+            files += found
+        else:
+            files.append(path)
+    return files
+
+
+def _parse_settings(args) -> Dict[str, float]:
+    settings: Dict[str, float] = {}
+    if args.settings:
+        try:
+            with open(args.settings, encoding="utf-8") as fh:
+                data = json.load(fh)
+        except OSError as exc:
+            raise InputError(f"{args.settings}: cannot read: {exc.strerror or exc}") from None
+        except json.JSONDecodeError as exc:
+            raise InputError(f"{args.settings}: line {exc.lineno}: invalid JSON: {exc.msg}") from None
+        if not isinstance(data, dict):
+            raise InputError(f"{args.settings}: expected a JSON object {{name: value}}")
+        settings.update(data)
+    for item in args.set:
+        name, sep, value = item.partition("=")
+        if not sep or not name.strip():
+            raise InputError(f"--set {item!r}: expected NAME=VALUE")
+        try:
+            settings[name.strip()] = float(value)
+        except ValueError:
+            raise InputError(f"--set {item!r}: '{value}' is not a number") from None
+    return settings
+
+
+def _list_settings(scalar: str) -> int:
+    from ..native import setting_info
+    info = setting_info(scalar)
+    w = max(len(n) for n in info)
+    print(f"estimator settings ({scalar} build), defaults from att_default_settings:")
+    for name, row in info.items():
+        print(f"  {name.ljust(w)}  {row['default']!s:>14}  {row['unit']:<14} {row['help']}")
+    return 0
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..native import NativeError, SettingsError
+
+    try:
+        if args.list_settings:
+            return _list_settings(args.scalar)
+        if not args.inputs:
+            return _fail("no recording given (see --help)", 2)
+        settings = _parse_settings(args)
+        files = _collect(args.inputs)
+        if args.output_csv and len(files) != 1:
+            return _fail(f"--output-csv scores one recording, {len(files)} given", 2)
+        if args.save_output and not args.out:
+            return _fail("--save-output needs --out DIR", 2)
+        return _evaluate(args, files, settings)
+    except InputError as exc:
+        return _fail(str(exc))
+    except SettingsError as exc:
+        return _fail(str(exc), 2)
+    except NativeError as exc:
+        return _fail(str(exc).replace("\n", " "))
+
+
+def _evaluate(args, files: List[str], settings: Dict[str, float]) -> int:
+    from ..evaluate import evaluate_output, evaluate_run, format_table, mean_row
+    from ..progress import bar
+
+    trials = []
+    names = set()
+    for path in files:
+        with bar(None, f"reading {os.path.basename(path)}", args.quiet, unit="row") as pb:
+            rec = read_recording(path, check_units=not args.no_unit_check, progress=pb.update)
+        name = rec.name
+        if name in names:  # same stem from two directories: keep both, distinguishable
+            name = f"{name}@{os.path.basename(os.path.dirname(os.path.abspath(path)))}"
+        names.add(name)
+        if args.output_csv:
+            out = read_output_csv(args.output_csv)
+            tr = evaluate_output(rec, out, six_d=args.no_mag or rec.mag is None,
+                                 time_offset_s=args.time_offset)
+        else:
+            with bar(len(rec), f"{name}", args.quiet, unit="sample") as pb:
+                tr, res = evaluate_run(rec, settings, scalar=args.scalar, use_mag=not args.no_mag,
+                                       progress=pb.update)
+            if args.save_output:
+                write_output_csv(os.path.join(args.out, f"{name}_output.csv"), rec.t, tr.euler_est,
+                                 tr.var_euler, res.flags, res.status[:, 0])
+        tr.name = name
+        trials.append(tr)
+        if not args.no_plot and args.out:
+            from ..plots import plot_trial
+            plot_trial(tr, os.path.join(args.out, f"{name}.png"))
+
+    table = format_table(trials)
+    print(table)
+    notes = _notes(trials)
+    for line in notes:
+        print(line)
+    result = {
+        "tool": f"attekf eval {__version__}",
+        "estimator": "recorded output" if args.output_csv else f"C estimator ({args.scalar})",
+        "settings_changed": settings,
+        "settings": None,
+        "trials": [t.to_json() for t in trials],
+        "mean_rmse_deg": {k: (v if math.isfinite(v) else None) for k, v in mean_row(trials).items()},
+    }
+    if not args.output_csv:
+        from ..native import default_settings
+        used = default_settings(args.scalar)
+        used.update(settings)
+        result["settings"] = used
+    json_path = args.json or (os.path.join(args.out, "results.json") if args.out else None)
+    if args.out:
+        os.makedirs(args.out, exist_ok=True)
+        with open(os.path.join(args.out, "table.txt"), "w", encoding="utf-8") as fh:
+            fh.write(table + "\n" + "".join(n + "\n" for n in notes))
+    if json_path:
+        os.makedirs(os.path.dirname(os.path.abspath(json_path)), exist_ok=True)
+        with open(json_path, "w", encoding="utf-8") as fh:
+            json.dump(result, fh, indent=2)
+            fh.write("\n")
+    if args.out and not args.quiet:
+        print(f"wrote {args.out}/table.txt, {json_path}" + ("" if args.no_plot else f", {len(trials)} plot(s)"),
+              file=sys.stderr)
+    return 0
+
+
+def _notes(trials) -> List[str]:
+    """Lines for everything that was not scored or was refused, so that nothing goes unseen."""
+    out = []
+    for tr in trials:
+        c = tr.counts
+        parts = []
+        if not tr.has_truth:
+            parts.append("no ground truth: nothing scored")
+        for key, label in (("movement_without_truth", "movement samples without truth"),
+                           ("movement_without_estimate", "movement samples without estimate"),
+                           ("refused", "samples refused by the estimator"),
+                           ("output_rows_unmatched", "output rows matching no sample"),
+                           ("output_rows_duplicate", "output rows for an already-matched sample")):
+            if c.get(key):
+                parts.append(f"{c[key]} {label}")
+        sc = tr.estimator_summary.get("status_counts") if tr.estimator_summary else None
+        if c.get("refused") and sc:
+            parts.append("status: " + "; ".join(f"{col} " + ", ".join(f"{k} x{v}" for k, v in d.items())
+                                                for col, d in sc.items()))
+        if parts:
+            out.append(f"note: {tr.name}: " + ", ".join(parts))
+    return out

@@ -1,0 +1,391 @@
+"""``attekf record``: log a CAN bus and decode the estimator's output frames to CSV."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import threading
+import socket
+import sys
+import time
+from dataclasses import dataclass, field
+from typing import Dict, List, Optional
+
+import numpy as np
+
+NAME = "record"
+HELP = "log a CAN bus (python-can loggers) and decode the estimator's outputs to CSV"
+DESCRIPTION = """\
+Listens on a python-can interface (or reads a CAN log with --from-log), writes every frame to a
+log file (-o; format from the extension: .log candump, .asc, .blf, ...), and decodes with
+hal/can/attekf.dbc:
+  --csv FILE         the node's attitude outputs (ATT_EULER, ATT_RATES, ATT_SIGMA, ATT_STATUS),
+                     one row per output, in the estimator-output CSV layout of docs/host_tools.md:
+                     t_s (the time of the input sample the output includes, from its IMU_SYNC
+                     frame when that was on the bus, else the bus time), roll/pitch/yaw_rad,
+                     var_*_rad2 (sigma^2), flags (ATT_FLAG_*), and seq, out_index, node_flags
+                     (HAL_FLAG_*), rate_*_rad_s, rx_time_s, latency_s (IMU_SYNC -> ATT_EULER on
+                     the bus; empty if unknown);
+  --inputs-csv FILE  the IMU samples seen on the bus, as a recording CSV (samples without gyro or
+                     accelerometer are left out and counted).
+--stats writes counts, sequence gaps of inputs and outputs, the bus latency percentiles and the
+node's last published counters as JSON.
+
+Stops on Ctrl-C / SIGTERM, after --duration, after --idle seconds without frames, or after
+--count frames. Receive errors (interface going down) are counted and listening goes on.
+
+examples:
+  attekf record -i socketcan -c vcan0 -o bus.log --csv att.csv
+  attekf record --from-log bus.log --csv att.csv --stats stats.json
+"""
+
+SO_RCVBUFFORCE = getattr(socket, "SO_RCVBUFFORCE", 33)
+
+
+def _set_signal(sig, handler):
+    """signal.signal in the main thread (where Python delivers signals); elsewhere (the command
+    run from a thread, as the tests do) nothing, returning None."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.signal(sig, handler)
+
+
+def add_arguments(p) -> None:
+    src = p.add_argument_group("source (one of)")
+    src.add_argument("-i", "--interface", help="python-can interface: socketcan, virtual, ...")
+    src.add_argument("-c", "--channel", help="channel (vcan0, can0, ...)")
+    src.add_argument("--bitrate", type=int, help="bitrate, for interfaces that set it")
+    src.add_argument("--from-log", metavar="FILE", help="decode an existing CAN log instead of a bus")
+    p.add_argument("-o", "--output", metavar="LOG", help="log every frame to this file")
+    p.add_argument("--csv", metavar="FILE", help="decoded attitude outputs")
+    p.add_argument("--inputs-csv", metavar="FILE", help="decoded IMU input samples (recording CSV)")
+    p.add_argument("--stats", metavar="FILE", help="counts, gaps, latency and node counters as JSON")
+    p.add_argument("--duration", type=float, default=0.0, help="stop after this many seconds")
+    p.add_argument("--idle", type=float, default=0.0,
+                   help="stop after this many seconds without a frame (once one was seen)")
+    p.add_argument("--count", type=int, default=0, help="stop after this many frames")
+    p.add_argument("--rcvbuf", type=int, default=8 * 1024 * 1024,
+                   help="socketcan: receive buffer in bytes (default 8 MiB; bursts overflow the "
+                        "kernel default)")
+    p.add_argument("--ready-file", metavar="FILE", help="create FILE once listening (for scripts)")
+
+
+@dataclass
+class Recorder:
+    """Collects frames and decodes them (inputs and outputs) in batches: while listening it only
+    stores them, so that decoding does not compete with the node for the CPU during a test."""
+    frames: int = 0
+    by_name: Dict[str, int] = field(default_factory=dict)
+    rx_errors: int = 0
+    batch: int = 100000
+
+    def __post_init__(self) -> None:
+        from .. import canproto
+        self.cp = canproto
+        self.out = canproto.OutputDecoder()
+        self.inp = canproto.InputDecoder()
+        self.names = {v: k for k, v in canproto.ids().items()}
+        self.sync_seen: Dict[int, float] = {}   # seq -> bus time of its IMU_SYNC (latest)
+        self._raw: List[tuple] = []
+
+    def feed(self, timestamp: float, arbitration_id: int, data: bytes, extended: bool = False) -> None:
+        self.frames += 1
+        self._raw.append((timestamp, arbitration_id, data, extended))
+        if len(self._raw) >= self.batch:
+            self.decode()
+
+    def decode(self) -> None:
+        """Decodes the frames stored so far."""
+        raw, self._raw = self._raw, []
+        for timestamp, arbitration_id, data, extended in raw:
+            name = self.names.get(arbitration_id, "other") if not extended else "other"
+            self.by_name[name] = self.by_name.get(name, 0) + 1
+            if extended:
+                continue
+            s = self.inp.feed(timestamp, arbitration_id, data)
+            if s is not None:
+                self.sync_seen[s.seq] = timestamp
+            self.out.feed(timestamp, arbitration_id, data)
+
+    # -- results -----------------------------------------------------------------------------
+    def input_times_us(self) -> Dict[int, int]:
+        """seq -> unwrapped sample time (us) of the input samples seen."""
+        if not self.inp.samples:
+            return {}
+        t = self.cp.unwrap_time_us([s.time_us for s in self.inp.samples])
+        return {s.seq: int(ti) for s, ti in zip(self.inp.samples, t)}
+
+    def latencies_s(self) -> np.ndarray:
+        lat = []
+        for r in self.out.rows:
+            ts = self.sync_seen.get(r.seq)
+            lat.append(r.rx_time - ts if ts is not None else np.nan)
+        return np.asarray(lat, dtype=np.float64)
+
+    def stats(self) -> Dict[str, object]:
+        self.decode()
+        rows = self.out.rows
+        seqs = [s.seq for s in self.inp.samples]
+        missing_in = 0
+        for a, b in zip(seqs, seqs[1:]):
+            d = (b - a) & 0xFFFF
+            if 1 < d < 32768:
+                missing_in += d - 1
+        idx = [r.index for r in rows] + [h[2] for h in self.out.heartbeats]
+        idx.sort()
+        missing_out = sum(((b - a) & 0xFFFF) - 1 for a, b in zip(idx, idx[1:]) if ((b - a) & 0xFFFF) > 1)
+        lat = self.latencies_s()
+        lat = lat[np.isfinite(lat)] * 1e6
+        pct = (lambda q: round(float(np.percentile(lat, q)), 1)) if lat.size else (lambda q: None)
+        return {
+            "frames": self.frames, "by_message": dict(sorted(self.by_name.items())),
+            "rx_errors": self.rx_errors,
+            "input_samples": len(self.inp.samples), "input_seq_missing": missing_in,
+            "outputs": len(rows), "heartbeats": len(self.out.heartbeats),
+            "broken_outputs": self.out.broken, "output_index_missing": missing_out,
+            "latency_us": {"count": int(lat.size), "p50": pct(50), "p90": pct(90), "p99": pct(99),
+                           "max": round(float(lat.max()), 1) if lat.size else None},
+            "node_counters": self.out.counters,
+        }
+
+    def write_outputs_csv(self, path: str) -> str:
+        """Writes the attitude outputs; returns what t_s is (for the user)."""
+        from ..io import write_output_csv
+        self.decode()
+        rows = self.out.rows
+        times = self.input_times_us()
+        have_all = bool(rows) and all(r.seq in times for r in rows)
+        if have_all:
+            t = np.array([times[r.seq] for r in rows], dtype=np.float64) * 1e-6
+            what = "input sample times"
+        else:
+            t = np.array([r.rx_time for r in rows], dtype=np.float64)
+            what = "bus time (IMU_SYNC frames of some outputs were not on the bus)"
+        n = len(rows)
+        euler = np.array([r.euler for r in rows], dtype=np.float64).reshape(n, 3)
+        sigma = np.array([r.sigma for r in rows], dtype=np.float64).reshape(n, 3)
+        rates = np.array([r.rates for r in rows], dtype=np.float64).reshape(n, 3)
+        extra = {
+            "seq": np.array([r.seq for r in rows], dtype=np.int64),
+            "out_index": np.array([r.index for r in rows], dtype=np.int64),
+            "node_flags": np.array([r.flags for r in rows], dtype=np.int64),
+            "rate_p_rad_s": rates[:, 0], "rate_q_rad_s": rates[:, 1], "rate_r_rad_s": rates[:, 2],
+            "rx_time_s": np.array([r.rx_time for r in rows], dtype=np.float64),
+            "latency_s": self.latencies_s(),
+        }
+        write_output_csv(path, t, euler, var=sigma ** 2,
+                         flags=np.array([r.att_flags for r in rows], dtype=np.int64), extra=extra)
+        return what
+
+    def write_inputs_csv(self, path: str) -> int:
+        """Writes the complete input samples as a recording; returns how many were left out."""
+        from ..io import Recording, write_recording_csv
+        self.decode()
+        times = self.input_times_us()
+        keep = [s for s in self.inp.samples if s.gyro is not None and s.accel is not None]
+        t = np.array([times[s.seq] for s in keep], dtype=np.float64) * 1e-6
+        gyr = np.array([s.gyro for s in keep], dtype=np.float64).reshape(len(keep), 3)
+        acc = np.array([s.accel for s in keep], dtype=np.float64).reshape(len(keep), 3)
+        mag = None
+        if any(s.mag is not None for s in keep):
+            mag = np.array([s.mag if s.mag is not None else (np.nan,) * 3 for s in keep], dtype=np.float64)
+        write_recording_csv(path, Recording(t=t, gyr=gyr, acc=acc, mag=mag))
+        return len(self.inp.samples) - len(keep)
+
+
+def _enlarge_rcvbuf(bus, nbytes: int) -> Optional[int]:
+    sock = getattr(bus, "socket", None)
+    if sock is None or nbytes <= 0:
+        return None
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, SO_RCVBUFFORCE, nbytes)
+    except OSError:
+        try:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, nbytes)
+        except OSError:
+            return None
+    return sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
+
+
+def _frames_socketcan(bus, stop_flag: List[bool]):
+    """Messages of a python-can socketcan bus, read from its socket without blocking: one
+    system call per frame while frames flow (python-can's recv() adds a select() per frame,
+    which matters on slow machines such as user-mode Linux). Yields None when idle (about every
+    50 ms) and the string "error" when the socket reports one (interface down)."""
+    import errno
+    import select
+    from can.interfaces.socketcan.socketcan import capture_message
+    import can
+    sock = bus.socket
+    sock.setblocking(False)
+    channel = bus.channel
+    while not stop_flag[0]:
+        try:
+            msg = capture_message(sock)
+        except can.CanOperationError as e:
+            if e.error_code in (errno.EAGAIN, errno.EWOULDBLOCK):
+                try:
+                    select.select([sock], [], [], 0.05)
+                except OSError:
+                    yield "error"
+                    time.sleep(0.02)
+                yield None
+            else:
+                yield "error"
+                time.sleep(0.02)
+            continue
+        if msg is not None and not msg.channel:
+            msg.channel = channel
+        yield msg
+
+
+def _frames_generic(bus, stop_flag: List[bool]):
+    import can
+    while not stop_flag[0]:
+        try:
+            yield bus.recv(timeout=0.05)
+        except can.CanError:
+            yield "error"
+            time.sleep(0.02)
+
+
+def record_bus(rec: Recorder, bus, logger, duration: float, idle: float, count: int,
+               stop_flag: List[bool], quiet: bool) -> None:
+    """Logs and collects frames until a stop condition. The clock is read only when the bus is
+    idle or every 256 frames."""
+    from ..progress import bar
+    t0 = time.monotonic()
+    last = None
+    seen_since_check = 0
+    source = (_frames_socketcan if type(bus).__name__ == "SocketcanBus" and getattr(bus, "socket", None)
+              else _frames_generic)(bus, stop_flag)
+    pb = bar(None, "record", quiet=quiet, unit="frame")
+    try:
+        for msg in source:
+            if msg is None or msg == "error" or seen_since_check >= 256:
+                now = time.monotonic()
+                if seen_since_check:
+                    last = now
+                    pb.update(seen_since_check)
+                    seen_since_check = 0
+                if msg == "error":
+                    rec.rx_errors += 1   # e.g. the interface went down: keep listening
+                if duration > 0 and now - t0 >= duration:
+                    break
+                if idle > 0 and last is not None and now - last >= idle:
+                    break
+                if count > 0 and rec.frames >= count:
+                    break
+                if msg is None or msg == "error":
+                    continue
+            if msg.is_error_frame or msg.is_remote_frame:
+                continue
+            if logger is not None:
+                logger(msg)
+            rec.feed(float(msg.timestamp), int(msg.arbitration_id), bytes(msg.data), bool(msg.is_extended_id))
+            seen_since_check += 1
+            if count > 0 and rec.frames >= count:
+                break
+    finally:
+        pb.update(seen_since_check)
+        pb.close()
+
+
+def run(args) -> int:
+    if (args.from_log is None) == (args.interface is None):
+        print("attekf record: give either -i/--interface (with -c/--channel) or --from-log", file=sys.stderr)
+        return 2
+    if not (args.output or args.csv or args.inputs_csv or args.stats):
+        print("attekf record: nothing to write: give -o, --csv, --inputs-csv and/or --stats", file=sys.stderr)
+        return 2
+    if args.duration < 0 or args.idle < 0 or args.count < 0:
+        print("attekf record: --duration, --idle and --count must be >= 0", file=sys.stderr)
+        return 2
+    import can
+    from ..canproto import ProtocolError
+    from ..io import InputError
+    from .replay import ReplayError, open_bus
+    try:
+        rec = Recorder()
+    except ProtocolError as e:
+        print(f"attekf record: {e}", file=sys.stderr)
+        return 1
+    logger = None
+    stop_flag = [False]
+
+    def on_signal(_sig, _frm):
+        stop_flag[0] = True
+    old_int = _set_signal(signal.SIGINT, on_signal)
+    old_term = _set_signal(signal.SIGTERM, on_signal)
+    try:
+        if args.output:
+            os.makedirs(os.path.dirname(os.path.abspath(args.output)), exist_ok=True)
+            try:
+                logger = can.Logger(args.output)
+            except (ValueError, OSError) as e:
+                print(f"attekf record: {args.output}: cannot write a CAN log: {e}", file=sys.stderr)
+                return 1
+        if args.from_log:
+            if not os.path.exists(args.from_log):
+                print(f"attekf record: {args.from_log}: no such file", file=sys.stderr)
+                return 1
+            try:
+                for m in can.LogReader(args.from_log):
+                    if m.is_error_frame or m.is_remote_frame:
+                        continue
+                    if logger is not None:
+                        logger(m)
+                    rec.feed(float(m.timestamp), int(m.arbitration_id), bytes(m.data), bool(m.is_extended_id))
+            except (OSError, ValueError) as e:
+                print(f"attekf record: {args.from_log}: cannot read as a CAN log: {e}", file=sys.stderr)
+                return 1
+        else:
+            try:
+                bus = open_bus(args.interface, args.channel, args.bitrate)
+            except ReplayError as e:
+                print(f"attekf record: {e}", file=sys.stderr)
+                return 1
+            try:
+                got = _enlarge_rcvbuf(bus, args.rcvbuf)
+                if args.ready_file:
+                    open(args.ready_file, "w").close()
+                if not args.quiet:
+                    print(f"attekf record: listening on {args.interface}:{args.channel}"
+                          + (f" (receive buffer {got} bytes)" if got else ""), file=sys.stderr)
+                record_bus(rec, bus, logger, args.duration, args.idle, args.count, stop_flag, args.quiet)
+            finally:
+                bus.shutdown()
+    finally:
+        if logger is not None:
+            logger.stop()
+        if old_int is not None:
+            _set_signal(signal.SIGINT, old_int)
+        if old_term is not None:
+            _set_signal(signal.SIGTERM, old_term)
+
+    try:
+        if args.csv:
+            what = rec.write_outputs_csv(args.csv)
+            if not args.quiet:
+                print(f"attekf record: {len(rec.out.rows)} outputs to {args.csv} (t_s = {what})", file=sys.stderr)
+        if args.inputs_csv:
+            left = rec.write_inputs_csv(args.inputs_csv)
+            if not args.quiet:
+                print(f"attekf record: {len(rec.inp.samples) - left} input samples to {args.inputs_csv}"
+                      + (f" ({left} without gyro or accelerometer left out)" if left else ""), file=sys.stderr)
+    except (InputError, ValueError, OSError) as e:
+        print(f"attekf record: {e}", file=sys.stderr)
+        return 1
+    st = rec.stats()
+    if args.stats:
+        with open(args.stats, "w", encoding="utf-8") as fh:
+            json.dump(st, fh, indent=2)
+    if not args.quiet:
+        lat = st["latency_us"]
+        print(f"attekf record: {st['frames']} frames, {st['input_samples']} input samples "
+              f"({st['input_seq_missing']} missing by Seq), {st['outputs']} outputs "
+              f"({st['output_index_missing']} missing by OutIndex), {st['heartbeats']} heartbeats"
+              + (f"; latency p50 {lat['p50']} us, p99 {lat['p99']} us" if lat["count"] else ""),
+              file=sys.stderr)
+    return 0

@@ -1,0 +1,23 @@
+"""Progress bars for long work (tqdm on stderr; none with --quiet or when stderr is not a
+terminal, so logs and pipes stay clean)."""
+
+from __future__ import annotations
+
+from typing import Iterable, Optional, TypeVar
+
+from tqdm import tqdm
+
+T = TypeVar("T")
+
+
+def bar(total: Optional[int], desc: str, quiet: bool = False, unit: str = "it", leave: bool = False) -> tqdm:
+    """A progress bar to .update(n) and .close() (or use as a context manager)."""
+    return tqdm(total=total, desc=desc, unit=unit, unit_scale=True, leave=leave,
+                disable=True if quiet else None, dynamic_ncols=True)
+
+
+def iterate(items: Iterable[T], desc: str, quiet: bool = False, total: Optional[int] = None,
+            unit: str = "it") -> Iterable[T]:
+    """items wrapped in a progress bar."""
+    return tqdm(items, desc=desc, unit=unit, total=total, leave=False,
+                disable=True if quiet else None, dynamic_ncols=True)

@@ -1,0 +1,277 @@
+/*
+ * attekf_native.c - see attekf_native.h.
+ */
+#include "attekf_native.h"
+
+#include <math.h>
+#include <stddef.h>
+#include <string.h>
+
+/* ------------------------------------------------------------------------------------
+ * Settings table. One row per field of att_settings_t, in declaration order (which
+ * attekf_settings_table_complete() relies on). Units and help repeat att.h in short.
+ * ------------------------------------------------------------------------------------ */
+typedef struct {
+    const char *name;
+    size_t offset;
+    int type;
+    const char *unit;
+    const char *help;
+} setting_row_t;
+
+#define SCALAR_ROW(field, unit, help) \
+    { #field, offsetof(att_settings_t, field), ATTEKF_SETTING_SCALAR, unit, help }
+
+static const setting_row_t k_settings[] = {
+    SCALAR_ROW(rate_walk, "rad/s/sqrt(s)", "body-rate random walk"),
+    SCALAR_ROW(angle_walk, "rad/sqrt(s)", "extra angle random walk (model error)"),
+    SCALAR_ROW(euler_rate_rel, "1", "independent Euler-rate error, fraction of their variance per step"),
+    SCALAR_ROW(gyro_noise, "rad/s", "gyro white noise, 1 sigma per sample"),
+    SCALAR_ROW(gyro_gate, "sigma", "gyro innovation gate, 0 = off"),
+    SCALAR_ROW(gyro_range, "rad/s", "gyro |component| above this is refused"),
+    SCALAR_ROW(gravity, "m/s^2", "magnitude of gravity"),
+    SCALAR_ROW(accel_noise, "m/s^2", "accelerometer noise incl. unmodelled motion, 1 sigma"),
+    SCALAR_ROW(accel_band, "m/s^2", "| |a| - g | at which the accel variance doubles, 0 = off"),
+    SCALAR_ROW(accel_reject, "m/s^2", "| |a| - g | above which accel is not fused"),
+    SCALAR_ROW(accel_gate, "sigma", "accel innovation gate, 0 = off"),
+    SCALAR_ROW(accel_range, "m/s^2", "accel |component| above this is refused"),
+    SCALAR_ROW(mag_heading_noise, "rad", "magnetic heading noise, 1 sigma"),
+    SCALAR_ROW(mag_gate, "sigma", "magnetometer innovation gate, 0 = off"),
+    SCALAR_ROW(mag_norm_tol, "fraction", "allowed | |m|/ref - 1 | before 'disturbed'"),
+    SCALAR_ROW(mag_dip_tol, "rad", "allowed |dip - ref dip| before 'disturbed'"),
+    SCALAR_ROW(mag_ref_norm, "uT", "reference field norm, 0 = learn at alignment"),
+    SCALAR_ROW(mag_ref_dip, "rad", "reference dip, positive down (if mag_ref_norm > 0)"),
+    SCALAR_ROW(mag_declination, "rad", "magnetic declination, east positive"),
+    SCALAR_ROW(mag_range, "uT", "magnetometer |component| above this is refused"),
+    SCALAR_ROW(gate_timeout, "s", "continuous gating after which a gate is bypassed, 0 = never"),
+    SCALAR_ROW(gimbal_limit, "rad", "|pitch| above which heading is held"),
+    SCALAR_ROW(dt_max, "s", "longest accepted time step"),
+    SCALAR_ROW(heading_var_max, "rad^2", "cap on the heading variance"),
+    SCALAR_ROW(var_floor, "rad^2", "floor of every state variance"),
+    SCALAR_ROW(init_tilt_sigma, "rad", "initial roll/pitch sigma"),
+    SCALAR_ROW(init_heading_sigma, "rad", "initial heading sigma (with magnetometer)"),
+    SCALAR_ROW(init_rate_sigma, "rad/s", "initial body-rate sigma"),
+    { "align_samples", offsetof(att_settings_t, align_samples), ATTEKF_SETTING_U16, "samples",
+      "accelerometer samples averaged for the alignment (>= 1)" },
+};
+
+#define N_SETTINGS (sizeof k_settings / sizeof k_settings[0])
+
+static size_t type_size(int type)
+{
+    return (type == ATTEKF_SETTING_U16) ? sizeof(uint16_t) : sizeof(ekf_scalar_t);
+}
+
+static const setting_row_t *find_setting(const char *name)
+{
+    size_t i;
+    if (name == NULL) {
+        return NULL;
+    }
+    for (i = 0; i < N_SETTINGS; ++i) {
+        if (strcmp(k_settings[i].name, name) == 0) {
+            return &k_settings[i];
+        }
+    }
+    return NULL;
+}
+
+int attekf_api_version(void) { return ATTEKF_NATIVE_API_VERSION; }
+const char *attekf_scalar_name(void) { return EKF_SCALAR_NAME; }
+size_t attekf_settings_size(void) { return sizeof(att_settings_t); }
+size_t attekf_filter_size(void) { return sizeof(att_ekf_t); }
+
+void attekf_settings_default(att_settings_t *s)
+{
+    if (s != NULL) {
+        *s = att_default_settings;
+    }
+}
+
+size_t attekf_setting_count(void) { return N_SETTINGS; }
+const char *attekf_setting_name(size_t i) { return (i < N_SETTINGS) ? k_settings[i].name : NULL; }
+const char *attekf_setting_unit(size_t i) { return (i < N_SETTINGS) ? k_settings[i].unit : NULL; }
+const char *attekf_setting_help(size_t i) { return (i < N_SETTINGS) ? k_settings[i].help : NULL; }
+int attekf_setting_type(size_t i) { return (i < N_SETTINGS) ? k_settings[i].type : -1; }
+
+int attekf_setting_set(att_settings_t *s, const char *name, double value)
+{
+    const setting_row_t *row = find_setting(name);
+    unsigned char *base = (unsigned char *)s;
+    if (s == NULL) {
+        return ATTEKF_SETTING_NULL;
+    }
+    if (row == NULL) {
+        return ATTEKF_SETTING_UNKNOWN;
+    }
+    if (!isfinite(value)) {
+        return ATTEKF_SETTING_BAD_VALUE;
+    }
+    if (row->type == ATTEKF_SETTING_U16) {
+        uint16_t v;
+        if (value < 0.0 || value > 65535.0 || floor(value) != value) {
+            return ATTEKF_SETTING_BAD_VALUE;
+        }
+        v = (uint16_t)value;
+        memcpy(base + row->offset, &v, sizeof v);
+    } else {
+        /* A double beyond float's range becomes inf in a float build: refuse it here
+         * rather than let att_settings_check report an unnamed setting. */
+        const ekf_scalar_t v = (ekf_scalar_t)value;
+        if (!ekf_isfinite(v)) {
+            return ATTEKF_SETTING_BAD_VALUE;
+        }
+        memcpy(base + row->offset, &v, sizeof v);
+    }
+    return ATTEKF_SETTING_OK;
+}
+
+int attekf_setting_get(const att_settings_t *s, const char *name, double *value)
+{
+    const setting_row_t *row = find_setting(name);
+    const unsigned char *base = (const unsigned char *)s;
+    if (s == NULL || value == NULL) {
+        return ATTEKF_SETTING_NULL;
+    }
+    if (row == NULL) {
+        return ATTEKF_SETTING_UNKNOWN;
+    }
+    if (row->type == ATTEKF_SETTING_U16) {
+        uint16_t v;
+        memcpy(&v, base + row->offset, sizeof v);
+        *value = (double)v;
+    } else {
+        ekf_scalar_t v;
+        memcpy(&v, base + row->offset, sizeof v);
+        *value = (double)v;
+    }
+    return ATTEKF_SETTING_OK;
+}
+
+int attekf_settings_table_complete(void)
+{
+    size_t i;
+    size_t end = 0; /* first byte after the previous field */
+    for (i = 0; i < N_SETTINGS; ++i) {
+        const size_t size = type_size(k_settings[i].type);
+        /* In declaration order, a gap can only be alignment padding, which is smaller
+         * than the field that follows it (fields are aligned to their own size here). */
+        if (k_settings[i].offset < end || k_settings[i].offset - end >= size) {
+            return 0;
+        }
+        end = k_settings[i].offset + size;
+    }
+    /* Tail padding is smaller than the largest member. */
+    return (sizeof(att_settings_t) >= end && sizeof(att_settings_t) - end < sizeof(ekf_scalar_t)) ? 1 : 0;
+}
+
+int attekf_settings_check(const att_settings_t *s) { return (int)att_settings_check(s); }
+int attekf_filter_init(att_ekf_t *f, const att_settings_t *s) { return (int)att_init(f, s); }
+const char *attekf_status_name(int status) { return ekf_status_str((ekf_status_t)status); }
+
+/* ------------------------------------------------------------------------------------
+ * Diagnostic counters
+ * ------------------------------------------------------------------------------------ */
+typedef struct {
+    const char *name;
+    size_t offset;
+} diag_row_t;
+
+#define DIAG_ROW(field) { #field, offsetof(att_diag_t, field) }
+
+static const diag_row_t k_diag[] = {
+    DIAG_ROW(steps),       DIAG_ROW(gyro_fused),    DIAG_ROW(accel_fused),
+    DIAG_ROW(mag_fused),   DIAG_ROW(gyro_gated),    DIAG_ROW(accel_gated),
+    DIAG_ROW(mag_gated),   DIAG_ROW(accel_skipped), DIAG_ROW(mag_skipped),
+    DIAG_ROW(rejected),    DIAG_ROW(numeric),       DIAG_ROW(remaps),
+};
+
+#define N_DIAG (sizeof k_diag / sizeof k_diag[0])
+
+size_t attekf_diag_count(void) { return N_DIAG; }
+const char *attekf_diag_name(size_t i) { return (i < N_DIAG) ? k_diag[i].name : NULL; }
+
+void attekf_diag_get(const att_ekf_t *f, uint32_t *out)
+{
+    size_t i;
+    const unsigned char *base;
+    if (f == NULL || out == NULL) {
+        return;
+    }
+    base = (const unsigned char *)att_diag(f);
+    for (i = 0; i < N_DIAG; ++i) {
+        memcpy(&out[i], base + k_diag[i].offset, sizeof out[i]);
+    }
+}
+
+/* ------------------------------------------------------------------------------------
+ * Batch run
+ * ------------------------------------------------------------------------------------ */
+static void to_scalar3(const double *in, ekf_scalar_t out[3])
+{
+    out[0] = (ekf_scalar_t)in[0];
+    out[1] = (ekf_scalar_t)in[1];
+    out[2] = (ekf_scalar_t)in[2];
+}
+
+int attekf_run(att_ekf_t *f, size_t n, const double *dt, const double *gyr, const double *acc,
+               const double *mag, double *state, double *var, double *quat, uint32_t *flags,
+               uint8_t *status)
+{
+    size_t i;
+    int k;
+    if (f == NULL || (n > 0u && (dt == NULL || gyr == NULL || acc == NULL))) {
+        return (int)EKF_ERR_NULL;
+    }
+    for (i = 0; i < n; ++i) {
+        att_sample_t s;
+        att_step_report_t rep;
+        ekf_status_t st;
+        memset(&s, 0, sizeof s);
+        s.dt = (ekf_scalar_t)dt[i];
+        to_scalar3(&gyr[3 * i], s.gyro);
+        to_scalar3(&acc[3 * i], s.accel);
+        s.valid = (uint8_t)(ATT_HAS_GYRO | ATT_HAS_ACCEL);
+        if (mag != NULL) {
+            const double *m = &mag[3 * i];
+            /* all three NaN: the magnetometer did not sample at this time */
+            if (!(isnan(m[0]) && isnan(m[1]) && isnan(m[2]))) {
+                to_scalar3(m, s.mag);
+                s.valid = (uint8_t)(s.valid | ATT_HAS_MAG);
+            }
+        }
+        st = att_step(f, &s, &rep);
+        if (state != NULL) {
+            const ekf_scalar_t *x = att_state(f);
+            for (k = 0; k < ATT_N; ++k) {
+                state[(size_t)ATT_N * i + (size_t)k] = (double)x[k];
+            }
+        }
+        if (var != NULL) {
+            ekf_scalar_t v[ATT_N];
+            att_get_variances(f, v);
+            for (k = 0; k < ATT_N; ++k) {
+                var[(size_t)ATT_N * i + (size_t)k] = (double)v[k];
+            }
+        }
+        if (quat != NULL) {
+            ekf_scalar_t q[4];
+            att_get_quaternion(f, q);
+            for (k = 0; k < 4; ++k) {
+                quat[4u * i + (size_t)k] = (double)q[k];
+            }
+        }
+        if (flags != NULL) {
+            flags[i] = att_flags(f);
+        }
+        if (status != NULL) {
+            uint8_t *row = &status[(size_t)ATTEKF_STATUS_COLS * i];
+            row[ATTEKF_STATUS_STEP] = (uint8_t)st;
+            row[ATTEKF_STATUS_PREDICT] = (uint8_t)rep.predict;
+            row[ATTEKF_STATUS_GYRO] = (uint8_t)rep.gyro;
+            row[ATTEKF_STATUS_ACCEL] = (uint8_t)rep.accel;
+            row[ATTEKF_STATUS_MAG] = (uint8_t)rep.mag;
+        }
+    }
+    return (int)EKF_OK;
+}
