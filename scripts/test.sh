@@ -14,6 +14,9 @@ status=0
 echo "[test] ctest (build/host)"
 ctest --test-dir "$ROOT/build/host" --output-on-failure -j"$JOBS" || status=1
 
+echo "[test] Cortex-M builds under QEMU (scripts/test_target.sh)"
+"$ROOT/scripts/test_target.sh" || status=1
+
 echo "[test] pytest"
 "$ROOT/.venv/bin/python" -m pytest "$ROOT/tests/python" -q -ra || status=1
 

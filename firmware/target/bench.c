@@ -1,0 +1,254 @@
+/*
+ * bench.c - instructions and stack of the estimator's stages, measured on the target.
+ *
+ * Run under QEMU with -icount shift=8 (scripts/bench_firmware.py does): every executed
+ * instruction then advances virtual time by 256 ns, and SysTick, clocked at 25 MHz, by
+ * exactly 6.4 ticks. The SysTick difference around a call, divided by 6.4, is the number
+ * of instructions it executed, deterministically. (Instructions, not cycles: on a real
+ * Cortex-M4 loads, branches, VDIV and VSQRT take more than one cycle.)
+ *
+ * Inputs: 30 s at 100 Hz of simulated motion with gyroscope, accelerometer and
+ * magnetometer in every sample (tests/c/support/testsim.c, double precision, outside the
+ * measured regions). For each sample after the alignment the full att_step is timed on
+ * the filter, and the same stages (gyro update, predict, accelerometer update,
+ * magnetometer update) are timed one by one on a copy of it; both must end in the same
+ * state, bit for bit, or the benchmark fails.
+ *
+ * Stack: the stack below the caller is painted before each att_step and scanned after it.
+ *
+ * Usage: attekf_bench.elf [samples]   (default 3000; fewer for an instruction trace)
+ * Output: "key value..." lines, parsed by scripts/bench_firmware.py. Exit status 0, or
+ * 1 (estimator misbehaved), 2 (SysTick does not count instructions: not under -icount)
+ * or 3 (bad argument).
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "att.h"
+#include "target.h"
+#include "testsim.h"
+
+#define SAMPLES_DEFAULT 3000ul
+/* Instructions are counted in ticks * 5 / 32 (6.4 ticks each). */
+#define TICKS_PER_INSN_X10 64u
+#define STACK_DEPTH 4096u
+#define STACK_MARGIN 128u
+
+typedef struct {
+    const char *name;
+    uint32_t min, max;
+    uint64_t sum;
+    uint32_t n;
+} stat_t;
+
+static void stat_add(stat_t *s, uint32_t insns)
+{
+    if (s->n == 0u || insns < s->min) {
+        s->min = insns;
+    }
+    if (insns > s->max) {
+        s->max = insns;
+    }
+    s->sum += insns;
+    ++s->n;
+}
+
+static void stat_print(const stat_t *s)
+{
+    const uint32_t mean = (s->n > 0u) ? (uint32_t)((s->sum + s->n / 2u) / s->n) : 0u;
+    printf("insns %s min %lu mean %lu max %lu n %lu\n", s->name, (unsigned long)s->min,
+           (unsigned long)mean, (unsigned long)s->max, (unsigned long)s->n);
+}
+
+/* SysTick ticks between two counter values read in that order (it counts down). */
+static uint32_t elapsed(uint32_t t0, uint32_t t1)
+{
+    return (t0 - t1) & TARGET_SYSTICK_MASK;
+}
+
+/* Ticks to instructions, rounded to nearest. */
+static uint32_t to_insns(uint32_t ticks)
+{
+    return (ticks * 10u + TICKS_PER_INSN_X10 / 2u) / TICKS_PER_INSN_X10;
+}
+
+/* Cost of the measurement itself: two counter reads around nothing. */
+static uint32_t baseline_ticks(void)
+{
+    const uint32_t t0 = TARGET_SYSTICK_NOW;
+    const uint32_t t1 = TARGET_SYSTICK_NOW;
+    return elapsed(t0, t1);
+}
+
+/* A loop of known length (1 + 2 * 1000 instructions). If SysTick does not count it as
+ * 2001 instructions, the run is not under -icount shift=8 and every other figure would be
+ * meaningless. */
+static int check_calibration(uint32_t base)
+{
+    uint32_t t0, t1, insns;
+    t0 = TARGET_SYSTICK_NOW;
+    __asm__ volatile("movs r0, #250\n"
+                     "lsls r0, r0, #2\n" /* 1000 */
+                     "1: subs r0, r0, #1\n"
+                     "bne 1b\n" ::: "r0", "cc");
+    t1 = TARGET_SYSTICK_NOW;
+    insns = to_insns(elapsed(t0, t1) - base);
+    printf("calibration loop %lu insns (expected 2002) ticks %lu baseline ticks %lu\n",
+           (unsigned long)insns, (unsigned long)elapsed(t0, t1), (unsigned long)base);
+    return insns == 2002u;
+}
+
+/* Simulated body rate, rad/s: a slow tumble with components of different frequencies, so
+ * that every angle and rate takes many values. */
+static void motion(double t, double w[3])
+{
+    w[0] = 0.8 * sin(2.0 * 3.141592653589793 * 0.23 * t);
+    w[1] = 0.5 * sin(2.0 * 3.141592653589793 * 0.17 * t + 1.0);
+    w[2] = 0.6 * sin(2.0 * 3.141592653589793 * 0.11 * t + 2.0);
+}
+
+int main(int argc, char **argv)
+{
+    static att_ekf_t filter, staged;
+    static stat_t st_predict = {"predict", 0, 0, 0, 0}, st_gyro = {"update_gyro", 0, 0, 0, 0},
+                  st_accel = {"update_accel", 0, 0, 0, 0}, st_mag = {"update_mag", 0, 0, 0, 0},
+                  st_step = {"step", 0, 0, 0, 0}, st_stages = {"stages_sum", 0, 0, 0, 0};
+    ts_sim_cfg_t cfg;
+    ts_sim_t sim;
+    uint32_t base, k, max_stack = 0u, mismatches = 0u, errors = 0u;
+    unsigned long samples = SAMPLES_DEFAULT;
+    const uintptr_t sp = target_sp();
+
+    if (argc > 1) {
+        char *end = NULL;
+        samples = strtoul(argv[1], &end, 10);
+        if (end == argv[1] || *end != '\0' || samples < 20ul || samples > 1000000ul) {
+            printf("error: samples must be an integer in 20..1000000, got '%s'\n", argv[1]);
+            return 3;
+        }
+    }
+
+    target_systick_start();
+    base = baseline_ticks();
+    if (!check_calibration(base)) {
+        printf("error: SysTick does not count instructions; run under qemu -icount shift=8\n");
+        return 2;
+    }
+    printf("target %s scalar %s samples %lu\n",
+#if defined(__ARM_FP)
+           "fpu",
+#else
+           "soft-float",
+#endif
+           EKF_SCALAR_NAME, samples);
+
+    if (att_init(&filter, &att_default_settings) != EKF_OK) {
+        printf("error: att_init failed\n");
+        return 1;
+    }
+    ts_sim_default(&cfg);
+    ts_sim_init(&sim, &cfg, 12345u, 0.2, -0.1, 1.0);
+
+    for (k = 0; k < samples; ++k) {
+        static const double still[3] = {0.0, 0.0, 0.0};
+        double w[3];
+        att_sample_t s;
+        att_step_report_t rep;
+        ekf_status_t status;
+        uint32_t t0, t1, used;
+        uint32_t c_gyro, c_predict, c_accel, c_mag;
+
+        motion(sim.t, w);
+        ts_sim_step(&sim, (att_flags(&filter) & ATT_FLAG_ALIGNED) ? w : still, NULL, &s);
+        if ((att_flags(&filter) & ATT_FLAG_ALIGNED) == 0u) {
+            if (att_step(&filter, &s, NULL) != EKF_OK) {
+                printf("error: alignment failed at sample %lu\n", (unsigned long)k);
+                return 1;
+            }
+            continue;
+        }
+        staged = filter;
+
+        /* the full step, with its stack */
+        target_stack_paint(sp - STACK_DEPTH, sp - STACK_MARGIN);
+        t0 = TARGET_SYSTICK_NOW;
+        status = att_step(&filter, &s, &rep);
+        t1 = TARGET_SYSTICK_NOW;
+        used = (uint32_t)(sp - target_stack_lowest_touched(sp - STACK_DEPTH, sp - STACK_MARGIN));
+        if (used > max_stack) {
+            max_stack = used;
+        }
+        stat_add(&st_step, to_insns(elapsed(t0, t1) - base));
+        if (status != EKF_OK && status != EKF_GATED && status != EKF_SKIPPED) {
+            ++errors;
+        }
+
+        /* the same stages one by one, in att_step's order */
+        t0 = TARGET_SYSTICK_NOW;
+        (void)att_update_gyro(&staged, s.gyro);
+        t1 = TARGET_SYSTICK_NOW;
+        c_gyro = to_insns(elapsed(t0, t1) - base);
+        t0 = TARGET_SYSTICK_NOW;
+        (void)att_predict(&staged, s.dt);
+        t1 = TARGET_SYSTICK_NOW;
+        c_predict = to_insns(elapsed(t0, t1) - base);
+        t0 = TARGET_SYSTICK_NOW;
+        (void)att_update_accel(&staged, s.accel);
+        t1 = TARGET_SYSTICK_NOW;
+        c_accel = to_insns(elapsed(t0, t1) - base);
+        t0 = TARGET_SYSTICK_NOW;
+        (void)att_update_mag(&staged, s.mag);
+        t1 = TARGET_SYSTICK_NOW;
+        c_mag = to_insns(elapsed(t0, t1) - base);
+        stat_add(&st_gyro, c_gyro);
+        stat_add(&st_predict, c_predict);
+        stat_add(&st_accel, c_accel);
+        stat_add(&st_mag, c_mag);
+        stat_add(&st_stages, c_gyro + c_predict + c_accel + c_mag);
+        if (memcmp(staged.x, filter.x, sizeof filter.x) != 0 || memcmp(staged.P, filter.P, sizeof filter.P) != 0) {
+            ++mismatches;
+        }
+    }
+
+    stat_print(&st_predict);
+    stat_print(&st_gyro);
+    stat_print(&st_accel);
+    stat_print(&st_mag);
+    stat_print(&st_step);
+    stat_print(&st_stages);
+    {
+        const att_diag_t *d = att_diag(&filter);
+        double e[3];
+        ekf_scalar_t est[3];
+        double ed[3];
+        att_get_euler(&filter, est);
+        ed[0] = (double)est[0];
+        ed[1] = (double)est[1];
+        ed[2] = (double)est[2];
+        ts_sim_euler(&sim, e);
+        printf("fused gyro %lu accel %lu mag %lu skipped accel %lu mag %lu gated gyro %lu accel %lu mag %lu\n",
+               (unsigned long)d->gyro_fused, (unsigned long)d->accel_fused, (unsigned long)d->mag_fused,
+               (unsigned long)d->accel_skipped, (unsigned long)d->mag_skipped, (unsigned long)d->gyro_gated,
+               (unsigned long)d->accel_gated, (unsigned long)d->mag_gated);
+        printf("final attitude error %.4f deg\n", ts_euler_angle_between(ed, e) * 57.29577951308232);
+    }
+    printf("stack step_max %lu\n", (unsigned long)max_stack);
+    if (max_stack >= STACK_DEPTH) {
+        printf("error: att_step used the whole %u-byte stack probe: its stack is at least that\n",
+               STACK_DEPTH);
+        return 1;
+    }
+    printf("stack image_high_water %lu of %lu\n", (unsigned long)target_stack_high_water(),
+           (unsigned long)target_stack_size());
+    printf("memory state_x_P %lu filter_struct %lu settings %lu\n",
+           (unsigned long)(sizeof filter.x + sizeof filter.P), (unsigned long)sizeof filter,
+           (unsigned long)sizeof filter.settings);
+    if (errors > 0u || mismatches > 0u) {
+        printf("error: %lu steps failed, %lu staged runs differ from att_step\n", (unsigned long)errors,
+               (unsigned long)mismatches);
+        return 1;
+    }
+    return 0;
+}

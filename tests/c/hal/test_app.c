@@ -1,0 +1,446 @@
+/*
+ * test_app.c - the application loop (firmware/app/app.c) on the virtual backend: output
+ * schedule, gaps, long gaps, time errors, sensor restarts, staleness and heartbeats,
+ * saturation, rejected input, link loss, and determinism of a replay.
+ */
+#include <math.h>
+#include <string.h>
+
+#include "app.h"
+#include "hal.h"
+#include "hal_can.h"
+#include "hal_virtual.h"
+#include "unity.h"
+
+#define MAXOUT 600
+#define QLEN 2048
+#define PERIOD_US 10000u /* samples at 100 Hz */
+
+static hal_virtual_t v;
+static hal_t hal;
+static app_t app;
+static hal_sample_t squeue[QLEN];
+static hal_can_frame_t fqueue[QLEN];
+static hal_output_t outs[MAXOUT];
+static int nout;
+static int nframes_out;
+
+static void collect(void *user, const hal_output_t *o)
+{
+    (void)user;
+    if (nout < MAXOUT) {
+        outs[nout] = *o;
+    }
+    ++nout;
+}
+
+static void count_frames(void *user, const hal_can_frame_t *f)
+{
+    (void)user;
+    (void)f;
+    ++nframes_out;
+}
+
+void setUp(void)
+{
+    nout = 0;
+    nframes_out = 0;
+    hal_virtual_init(&v, fqueue, QLEN, squeue, QLEN);
+    hal_virtual_set_sinks(&v, collect, count_frames, NULL, NULL);
+    hal_virtual_bind(&v, &hal);
+}
+void tearDown(void) {}
+
+/* Level and at rest, heading north-ish: gyro 0, gravity up, field north and down. */
+static hal_sample_t level(uint16_t seq, uint64_t t_us)
+{
+    hal_sample_t s;
+    memset(&s, 0, sizeof(s));
+    s.seq = seq;
+    s.t_us = t_us;
+    s.rx_us = t_us;
+    s.accel[2] = 9.81f;
+    s.mag[1] = 25.0f;
+    s.mag[2] = -43.0f;
+    s.valid = HAL_HAS_ALL;
+    return s;
+}
+
+static void push_samples(uint16_t seq0, uint64_t t0, int n)
+{
+    int k;
+    for (k = 0; k < n; ++k) {
+        const hal_sample_t s = level((uint16_t)(seq0 + k), t0 + PERIOD_US * (uint64_t)k);
+        TEST_ASSERT_EQUAL_INT(HAL_OK, hal_virtual_push_sample(&v, &s));
+    }
+}
+
+static void start(const app_settings_t *cfg)
+{
+    TEST_ASSERT_EQUAL_INT(EKF_OK, app_init(&app, cfg, &att_default_settings, &hal));
+}
+
+/* Polls until the queued input is consumed (end of input) and returns the polls made. */
+static int run_to_end(void)
+{
+    int polls = 0;
+    hal_virtual_end(&v);
+    while (app_poll(&app, 10000u) != HAL_END) {
+        TEST_ASSERT_TRUE(++polls < 100000);
+    }
+    return polls;
+}
+
+static uint32_t counter(hal_counter_id_t id)
+{
+    uint32_t c[HAL_CNT_COUNT];
+    app_get_counters(&app, c);
+    return c[id];
+}
+
+static uint16_t flags_since(int first)
+{
+    uint16_t f = 0u;
+    int i;
+    for (i = first; i < nout && i < MAXOUT; ++i) {
+        f |= outs[i].flags;
+    }
+    return f;
+}
+
+static void test_clean_stream_output_schedule(void)
+{
+    app_settings_t cfg = app_default_settings;
+    int i;
+    cfg.output_period_us = 25000u; /* 40 Hz from 100 Hz samples */
+    hal_virtual_set_clock(&v, 1000000u); /* no silence before the first sample */
+    start(&cfg);
+    push_samples(0u, 1000000u, 200);
+    run_to_end();
+    /* outputs at t0, t0+25ms, ...: samples 0, 3, 5, 8, 10, ... (2.5 samples apart) */
+    TEST_ASSERT_EQUAL_INT(80, nout);
+    TEST_ASSERT_EQUAL_UINT16(0u, outs[0].seq);
+    TEST_ASSERT_EQUAL_UINT16(3u, outs[1].seq);
+    TEST_ASSERT_EQUAL_UINT16(5u, outs[2].seq);
+    TEST_ASSERT_EQUAL_UINT32(80u, counter(HAL_CNT_OUTPUTS));
+    TEST_ASSERT_EQUAL_UINT32(200u, counter(HAL_CNT_SAMPLES));
+    TEST_ASSERT_EQUAL_INT(80 * 5, nframes_out);
+    for (i = 0; i < nout; ++i) {
+        TEST_ASSERT_EQUAL_UINT16((uint16_t)i, outs[i].index);
+        TEST_ASSERT_EQUAL_UINT8(HAL_OUT_ATTITUDE, outs[i].kind);
+    }
+    TEST_ASSERT_EQUAL_HEX16(0u, outs[0].flags); /* first sample: not aligned yet */
+    TEST_ASSERT_EQUAL_HEX16(HAL_FLAG_ALIGNED, outs[nout - 1].flags);
+    TEST_ASSERT_FLOAT_WITHIN(0.01f, 0.0f, outs[nout - 1].euler[0]);
+    TEST_ASSERT_FLOAT_WITHIN(0.01f, 0.0f, outs[nout - 1].euler[1]);
+    TEST_ASSERT_FLOAT_WITHIN(0.05f, 0.0f, outs[nout - 1].euler[2]);
+    TEST_ASSERT_TRUE(outs[nout - 1].sigma[0] > 0.0f && outs[nout - 1].sigma[0] < 0.1f);
+    TEST_ASSERT_EQUAL_UINT32(0u, counter(HAL_CNT_GAPS) + counter(HAL_CNT_STALE) +
+                                     counter(HAL_CNT_TIME_ERRORS) + counter(HAL_CNT_EKF_REJECTED));
+}
+
+static void test_every_sample_with_rate_zero(void)
+{
+    app_settings_t cfg = app_default_settings;
+    cfg.output_period_us = 0u;
+    start(&cfg);
+    push_samples(0u, 0u, 37);
+    run_to_end();
+    TEST_ASSERT_EQUAL_INT(37, nout);
+}
+
+static void test_gap_is_predicted_across_and_flagged(void)
+{
+    start(&app_default_settings);
+    push_samples(0u, 0u, 50);
+    push_samples(55u, 55u * PERIOD_US, 50); /* samples 50..54 missing */
+    run_to_end();
+    TEST_ASSERT_EQUAL_UINT32(1u, counter(HAL_CNT_GAPS));
+    TEST_ASSERT_EQUAL_UINT32(5u, counter(HAL_CNT_MISSING));
+    TEST_ASSERT_EQUAL_UINT32(0u, counter(HAL_CNT_REALIGN));
+    TEST_ASSERT_EQUAL_UINT16(55u, outs[50].seq); /* the first output after the gap */
+    TEST_ASSERT_TRUE((outs[50].flags & HAL_FLAG_GAP) != 0u);
+    TEST_ASSERT_TRUE((outs[50].flags & HAL_FLAG_ALIGNED) != 0u);
+    TEST_ASSERT_TRUE((outs[51].flags & HAL_FLAG_GAP) == 0u); /* latched for one output */
+    TEST_ASSERT_EQUAL_UINT32(100u, counter(HAL_CNT_OUTPUTS)); /* 100 Hz: one per sample */
+}
+
+static void test_gap_longer_than_dt_max_is_split(void)
+{
+    /* 1.2 s gap: above the filter's dt_max (0.5 s), below max_gap (2 s) */
+    start(&app_default_settings);
+    push_samples(0u, 0u, 30);
+    push_samples(150u, 149u * PERIOD_US, 30);
+    run_to_end();
+    TEST_ASSERT_EQUAL_UINT32(1u, counter(HAL_CNT_GAPS));
+    TEST_ASSERT_EQUAL_UINT32(120u, counter(HAL_CNT_MISSING));
+    TEST_ASSERT_EQUAL_UINT32(0u, counter(HAL_CNT_EKF_REJECTED));
+    TEST_ASSERT_EQUAL_UINT32(0u, counter(HAL_CNT_REALIGN));
+    TEST_ASSERT_TRUE((app_last_output(&app)->flags & HAL_FLAG_ALIGNED) != 0u);
+}
+
+static void test_long_gap_restarts_the_filter(void)
+{
+    int i;
+    start(&app_default_settings);
+    push_samples(0u, 0u, 30);
+    push_samples(30u, 29u * PERIOD_US + 3000000u, 30); /* consecutive seq, 3 s later */
+    run_to_end();
+    TEST_ASSERT_EQUAL_UINT32(1u, counter(HAL_CNT_REALIGN));
+    for (i = 30; i < nout && outs[i].kind == HAL_OUT_HEARTBEAT; ++i) {
+    } /* heartbeats during the 3 s of silence */
+    TEST_ASSERT_TRUE(i > 30);
+    TEST_ASSERT_EQUAL_UINT16(30u, outs[i].seq);
+    TEST_ASSERT_TRUE((outs[i].flags & HAL_FLAG_RESTARTED) != 0u);
+    TEST_ASSERT_TRUE((outs[i].flags & HAL_FLAG_ALIGNED) == 0u); /* aligning again */
+    TEST_ASSERT_TRUE((outs[nout - 1].flags & HAL_FLAG_ALIGNED) != 0u);
+}
+
+static void test_time_errors_then_resync(void)
+{
+    hal_sample_t s;
+    start(&app_default_settings);
+    push_samples(0u, 1000000u, 20);
+    s = level(20u, 1000000u + 19u * PERIOD_US); /* same time as sample 19 */
+    hal_virtual_push_sample(&v, &s);
+    push_samples(21u, 1000000u + 21u * PERIOD_US, 5);
+    run_to_end();
+    TEST_ASSERT_EQUAL_UINT32(1u, counter(HAL_CNT_TIME_ERRORS));
+    TEST_ASSERT_EQUAL_UINT32(1u, counter(HAL_CNT_GAPS)); /* the dropped one is missing */
+    TEST_ASSERT_EQUAL_UINT32(0u, counter(HAL_CNT_RESYNC));
+    TEST_ASSERT_TRUE((flags_since(0) & HAL_FLAG_TIME_ERROR) != 0u);
+
+    /* the sender's clock restarts (time back to 0, sequence continues): after
+     * APP_TIME_ERRORS_RESYNC samples the node follows it */
+    setUp();
+    start(&app_default_settings);
+    push_samples(0u, 5000000u, 20);
+    push_samples(20u, 0u, 20);
+    run_to_end();
+    TEST_ASSERT_EQUAL_UINT32(APP_TIME_ERRORS_RESYNC, counter(HAL_CNT_TIME_ERRORS));
+    TEST_ASSERT_EQUAL_UINT32(1u, counter(HAL_CNT_RESYNC));
+    TEST_ASSERT_TRUE((app_last_output(&app)->flags & HAL_FLAG_ALIGNED) != 0u);
+}
+
+static void test_sequence_restart_resyncs(void)
+{
+    start(&app_default_settings);
+    push_samples(40000u, 0u, 20);
+    push_samples(0u, 20u * PERIOD_US, 20); /* counter restarted, time continues */
+    run_to_end();
+    TEST_ASSERT_EQUAL_UINT32(1u, counter(HAL_CNT_RESYNC));
+    TEST_ASSERT_EQUAL_UINT32(0u, counter(HAL_CNT_GAPS));
+    TEST_ASSERT_EQUAL_UINT32(40u, counter(HAL_CNT_SAMPLES));
+}
+
+static void test_stale_input_heartbeats_and_resume(void)
+{
+    app_settings_t cfg = app_default_settings;
+    int i, hb = 0, first_after;
+    cfg.stale_timeout_us = 50000u;
+    cfg.heartbeat_period_us = 100000u;
+    start(&cfg);
+    push_samples(0u, 0u, 20);
+    /* 1 s of silence, then the stream resumes */
+    push_samples(20u, 1190000u, 20);
+    run_to_end();
+    TEST_ASSERT_EQUAL_UINT32(1u, counter(HAL_CNT_STALE));
+    for (i = 0; i < nout; ++i) {
+        if (outs[i].kind == HAL_OUT_HEARTBEAT) {
+            ++hb;
+            TEST_ASSERT_EQUAL_HEX16(HAL_FLAG_HEARTBEAT | HAL_FLAG_STALE,
+                                    outs[i].flags & (HAL_FLAG_HEARTBEAT | HAL_FLAG_STALE));
+            TEST_ASSERT_EQUAL_UINT16(19u, outs[i].seq); /* the last estimate, repeated */
+        }
+    }
+    /* stale from 0.24 s (0.19 + 0.05) to 1.19 s: heartbeats at 0.24, 0.34, ... 1.14 */
+    TEST_ASSERT_EQUAL_INT(10, hb);
+    /* heartbeats are not attitude outputs; every sample still gives one (100 Hz) */
+    TEST_ASSERT_EQUAL_UINT32(40u, counter(HAL_CNT_OUTPUTS));
+    TEST_ASSERT_EQUAL_INT(50, nout);
+    first_after = 20 + hb;
+    TEST_ASSERT_EQUAL_UINT16(20u, outs[first_after].seq);
+    TEST_ASSERT_EQUAL_UINT8(HAL_OUT_ATTITUDE, outs[first_after].kind);
+    TEST_ASSERT_TRUE((outs[first_after].flags & HAL_FLAG_STALE) == 0u);
+    /* the sequence continued through the silence: no gap, the 1 s was predicted across */
+    TEST_ASSERT_EQUAL_UINT32(0u, counter(HAL_CNT_GAPS));
+    TEST_ASSERT_TRUE((outs[nout - 1].flags & HAL_FLAG_ALIGNED) != 0u);
+}
+
+static void test_saturated_sensor_is_not_fused(void)
+{
+    hal_sample_t s;
+    start(&app_default_settings);
+    push_samples(0u, 0u, 20);
+    s = level(20u, 20u * PERIOD_US);
+    s.saturated = HAL_HAS_GYRO;
+    s.gyro[0] = 32.767f;
+    hal_virtual_push_sample(&v, &s);
+    push_samples(21u, 21u * PERIOD_US, 5);
+    run_to_end();
+    TEST_ASSERT_EQUAL_UINT32(1u, counter(HAL_CNT_SATURATED));
+    TEST_ASSERT_TRUE((flags_since(0) & HAL_FLAG_IN_SATURATED) != 0u);
+    /* the clamped 32.767 rad/s was not fused: the rate estimate stays near zero */
+    TEST_ASSERT_FLOAT_WITHIN(0.05f, 0.0f, app_last_output(&app)->rates[0]);
+}
+
+static void test_bad_values_are_rejected_and_counted(void)
+{
+    hal_sample_t s;
+    start(&app_default_settings);
+    push_samples(0u, 0u, 20);
+    s = level(20u, 20u * PERIOD_US);
+    s.accel[1] = NAN;
+    hal_virtual_push_sample(&v, &s);
+    s = level(21u, 21u * PERIOD_US);
+    s.gyro[2] = 1e6f; /* beyond gyro_range */
+    hal_virtual_push_sample(&v, &s);
+    push_samples(22u, 22u * PERIOD_US, 5);
+    run_to_end();
+    TEST_ASSERT_EQUAL_UINT32(2u, counter(HAL_CNT_EKF_REJECTED));
+    TEST_ASSERT_TRUE((flags_since(0) & HAL_FLAG_EKF_REJECT) != 0u);
+    TEST_ASSERT_TRUE(isfinite(app_last_output(&app)->euler[0]));
+    TEST_ASSERT_TRUE((app_last_output(&app)->flags & HAL_FLAG_ALIGNED) != 0u);
+}
+
+static void test_link_down_is_counted_and_flagged(void)
+{
+    int before;
+    start(&app_default_settings);
+    push_samples(0u, 0u, 10);
+    while (v.samples_n > 0u) {
+        (void)app_poll(&app, 10000u);
+    }
+    before = nout;
+    hal_virtual_set_link(&v, 0);
+    TEST_ASSERT_EQUAL_INT(HAL_ERR_LINK_DOWN, app_poll(&app, 10000u));
+    TEST_ASSERT_EQUAL_INT(HAL_EMPTY, app_poll(&app, 10000u));
+    hal_virtual_set_link(&v, 1);
+    push_samples(10u, 10u * PERIOD_US + 20000u, 10);
+    run_to_end();
+    TEST_ASSERT_EQUAL_UINT32(1u, counter(HAL_CNT_LINK_DOWN));
+    TEST_ASSERT_TRUE(nout > before);
+    TEST_ASSERT_TRUE((outs[before].flags & HAL_FLAG_LINK_ERROR) != 0u);
+
+    /* a failed publish (bus off, queue full) is counted; its events go with the next one */
+    setUp();
+    start(&app_default_settings);
+    push_samples(0u, 0u, 1);
+    (void)app_poll(&app, 10000u);
+    TEST_ASSERT_EQUAL_INT(1, nout);
+    hal_virtual_set_tx_fail(&v, 1);
+    push_samples(2u, 20000u, 1); /* sample 1 missing: the failed output carries GAP */
+    TEST_ASSERT_EQUAL_INT(HAL_OK, app_poll(&app, 30000u));
+    TEST_ASSERT_EQUAL_INT(1, nout);
+    TEST_ASSERT_EQUAL_UINT32(5u, counter(HAL_CNT_TX_ERRORS));
+    hal_virtual_set_tx_fail(&v, 0);
+    push_samples(3u, 30000u, 1);
+    run_to_end();
+    TEST_ASSERT_EQUAL_INT(2, nout);
+    TEST_ASSERT_EQUAL_UINT16(3u, outs[1].seq);
+    TEST_ASSERT_TRUE((outs[1].flags & HAL_FLAG_LINK_ERROR) != 0u);
+    TEST_ASSERT_TRUE((outs[1].flags & HAL_FLAG_GAP) != 0u);
+    TEST_ASSERT_EQUAL_UINT16(2u, outs[1].index); /* index 1 was the failed one */
+}
+
+static void test_frame_errors_reach_the_status(void)
+{
+    hal_can_frame_t f[HAL_CAN_SAMPLE_FRAMES], junk;
+    uint16_t k;
+    start(&app_default_settings);
+    for (k = 0; k < 20u; ++k) {
+        const hal_sample_t s = level(k, 1000u + PERIOD_US * k);
+        const size_t n = hal_can_encode_sample(&s, f);
+        size_t i;
+        for (i = 0; i < n; ++i) {
+            hal_virtual_push_frame(&v, &f[i]);
+        }
+        if (k == 10u) {
+            junk = f[0];
+            junk.id = 0x7FFu;
+            hal_virtual_push_frame(&v, &junk);
+        }
+    }
+    run_to_end();
+    TEST_ASSERT_EQUAL_UINT32(1u, counter(HAL_CNT_UNKNOWN_ID));
+    TEST_ASSERT_EQUAL_UINT32(81u, counter(HAL_CNT_RX_FRAMES));
+    TEST_ASSERT_TRUE((outs[10].flags & HAL_FLAG_FRAME_ERROR) == 0u);
+    TEST_ASSERT_TRUE((outs[11].flags & HAL_FLAG_FRAME_ERROR) != 0u);
+    TEST_ASSERT_TRUE((outs[12].flags & HAL_FLAG_FRAME_ERROR) == 0u);
+}
+
+static void test_replay_is_deterministic(void)
+{
+    static hal_output_t first[MAXOUT];
+    int n1, i, round;
+    for (round = 0; round < 2; ++round) {
+        hal_can_frame_t f[HAL_CAN_SAMPLE_FRAMES];
+        uint16_t k;
+        setUp();
+        start(&app_default_settings);
+        for (k = 0; k < 300u; ++k) {
+            hal_sample_t s = level(k, 5000u * k);
+            size_t n, j;
+            s.gyro[0] = 0.3f * sinf(0.05f * (float)k);
+            s.accel[1] = 0.5f * cosf(0.03f * (float)k);
+            n = hal_can_encode_sample(&s, f);
+            for (j = 0; j < n; ++j) {
+                f[j].t_us = s.t_us;
+                TEST_ASSERT_EQUAL_INT(HAL_OK, hal_virtual_push_frame(&v, &f[j]));
+            }
+        }
+        run_to_end();
+        if (round == 0) {
+            memcpy(first, outs, sizeof(first));
+            n1 = nout;
+        }
+    }
+    TEST_ASSERT_EQUAL_INT(n1, nout);
+    for (i = 0; i < nout; ++i) {
+        TEST_ASSERT_EQUAL_MEMORY(first[i].euler, outs[i].euler, sizeof(outs[i].euler));
+        TEST_ASSERT_EQUAL_MEMORY(first[i].sigma, outs[i].sigma, sizeof(outs[i].sigma));
+        TEST_ASSERT_EQUAL_UINT16(first[i].flags, outs[i].flags);
+    }
+}
+
+static void test_init_refuses_bad_settings(void)
+{
+    app_settings_t cfg = app_default_settings;
+    att_settings_t att = att_default_settings;
+    hal_t broken = {NULL, NULL};
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, app_init(&app, &cfg, &att, &broken));
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, app_init(NULL, &cfg, &att, &hal));
+    cfg.stale_timeout_us = 0u;
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_SETTINGS, app_init(&app, &cfg, &att, &hal));
+    cfg = app_default_settings;
+    cfg.seq_window = 40000u;
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_SETTINGS, app_init(&app, &cfg, &att, &hal));
+    cfg = app_default_settings;
+    cfg.max_gap_us = 60000000u;
+    att.dt_max = EKF_C(0.01); /* 6000 prediction steps for the longest gap: refused */
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_SETTINGS, app_init(&app, &cfg, &att, &hal));
+    att = att_default_settings;
+    att.gyro_noise = EKF_C(-1.0);
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_SETTINGS, app_init(&app, &app_default_settings, &att, &hal));
+    TEST_ASSERT_EQUAL_INT(HAL_ERR_ARG, app_poll(NULL, 0u));
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_clean_stream_output_schedule);
+    RUN_TEST(test_every_sample_with_rate_zero);
+    RUN_TEST(test_gap_is_predicted_across_and_flagged);
+    RUN_TEST(test_gap_longer_than_dt_max_is_split);
+    RUN_TEST(test_long_gap_restarts_the_filter);
+    RUN_TEST(test_time_errors_then_resync);
+    RUN_TEST(test_sequence_restart_resyncs);
+    RUN_TEST(test_stale_input_heartbeats_and_resume);
+    RUN_TEST(test_saturated_sensor_is_not_fused);
+    RUN_TEST(test_bad_values_are_rejected_and_counted);
+    RUN_TEST(test_link_down_is_counted_and_flagged);
+    RUN_TEST(test_frame_errors_reach_the_status);
+    RUN_TEST(test_replay_is_deterministic);
+    RUN_TEST(test_init_refuses_bad_settings);
+    return UNITY_END();
+}

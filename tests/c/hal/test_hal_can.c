@@ -1,0 +1,403 @@
+/*
+ * test_hal_can.c - the CAN protocol layer (hal/can/hal_can.c): sample assembly from frames
+ * under every fault the protocol defines (duplicates, reordering, loss, wrong length,
+ * unknown ids, saturation, wraps), and the output encoding round trip.
+ */
+#include <math.h>
+#include <string.h>
+
+#include "canmsg.h"
+#include "hal.h"
+#include "hal_can.h"
+#include "unity.h"
+
+void setUp(void) {}
+void tearDown(void) {}
+
+static hal_can_rx_t rx;
+
+static hal_sample_t make_sample(uint16_t seq, uint64_t t_us)
+{
+    hal_sample_t s;
+    memset(&s, 0, sizeof(s));
+    s.seq = seq;
+    s.t_us = t_us;
+    s.rx_us = t_us + 7u;
+    s.gyro[0] = 0.1234f;
+    s.gyro[1] = -1.5f;
+    s.gyro[2] = 0.0004f * (float)(seq % 100u);
+    s.accel[0] = 0.3f;
+    s.accel[1] = -0.2f;
+    s.accel[2] = 9.81f;
+    s.mag[0] = 20.0f;
+    s.mag[1] = -3.3f;
+    s.mag[2] = -41.7f;
+    s.valid = HAL_HAS_ALL;
+    return s;
+}
+
+/* Encodes sample seq and returns its frames (gyro, accel, mag, sync). */
+static size_t frames_of(uint16_t seq, uint64_t t_us, hal_can_frame_t f[HAL_CAN_SAMPLE_FRAMES])
+{
+    const hal_sample_t s = make_sample(seq, t_us);
+    return hal_can_encode_sample(&s, f);
+}
+
+static void feed_all(const hal_can_frame_t *f, size_t n)
+{
+    size_t i;
+    for (i = 0; i < n; ++i) {
+        hal_can_rx_frame(&rx, &f[i]);
+    }
+}
+
+static int pop(hal_sample_t *s) { return hal_can_rx_pop(&rx, s); }
+
+static void test_clean_stream_reassembles_within_resolution(void)
+{
+    hal_can_frame_t f[HAL_CAN_SAMPLE_FRAMES];
+    hal_sample_t s;
+    uint16_t k;
+    hal_can_rx_init(&rx);
+    for (k = 0; k < 50u; ++k) {
+        const hal_sample_t ref = make_sample(k, 1000u + 5000u * k);
+        const size_t n = frames_of(k, ref.t_us, f);
+        int i;
+        TEST_ASSERT_EQUAL_UINT(4u, n);
+        TEST_ASSERT_EQUAL_HEX32(CANMSG_IMU_SYNC_FRAME_ID, f[3].id);
+        feed_all(f, n - 1u);
+        TEST_ASSERT_FALSE(pop(&s)); /* not complete before IMU_SYNC */
+        hal_can_rx_frame(&rx, &f[n - 1u]);
+        TEST_ASSERT_TRUE(pop(&s));
+        TEST_ASSERT_FALSE(pop(&s));
+        TEST_ASSERT_EQUAL_UINT16(k, s.seq);
+        TEST_ASSERT_EQUAL_UINT64(ref.t_us, s.t_us);
+        TEST_ASSERT_EQUAL_UINT64(ref.rx_us, s.rx_us);
+        TEST_ASSERT_EQUAL_HEX8(HAL_HAS_ALL, s.valid);
+        TEST_ASSERT_EQUAL_HEX8(0u, s.saturated);
+        for (i = 0; i < 3; ++i) {
+            /* half an LSB of each signal's scaling (docs/can_protocol.md) */
+            TEST_ASSERT_FLOAT_WITHIN(0.0005f + 1e-6f, ref.gyro[i], s.gyro[i]);
+            TEST_ASSERT_FLOAT_WITHIN(0.0025f + 1e-5f, ref.accel[i], s.accel[i]);
+            TEST_ASSERT_FLOAT_WITHIN(0.025f + 1e-4f, ref.mag[i], s.mag[i]);
+        }
+    }
+    TEST_ASSERT_EQUAL_UINT32(200u, rx.counters[HAL_CNT_RX_FRAMES]);
+    TEST_ASSERT_EQUAL_UINT32(0u, rx.counters[HAL_CNT_DUPLICATE] + rx.counters[HAL_CNT_LATE] +
+                                     rx.counters[HAL_CNT_INCOMPLETE] + rx.counters[HAL_CNT_DISCARDED]);
+}
+
+static void test_unknown_id_and_bad_length_are_counted_and_ignored(void)
+{
+    hal_can_frame_t f[HAL_CAN_SAMPLE_FRAMES], bad;
+    hal_sample_t s;
+    hal_can_rx_init(&rx);
+    frames_of(1u, 100u, f);
+    bad = f[0];
+    bad.id = 0x321u;
+    hal_can_rx_frame(&rx, &bad);
+    bad.id = CANMSG_IMU_GYRO_FRAME_ID | 0x80000000u; /* same number, 29-bit id */
+    hal_can_rx_frame(&rx, &bad);
+    bad = f[1];
+    bad.dlc = 6u;
+    hal_can_rx_frame(&rx, &bad); /* short accel frame: rejected */
+    bad.dlc = 15u;
+    hal_can_rx_frame(&rx, &bad); /* CAN FD length: rejected */
+    TEST_ASSERT_EQUAL_UINT32(2u, rx.counters[HAL_CNT_UNKNOWN_ID]);
+    TEST_ASSERT_EQUAL_UINT32(2u, rx.counters[HAL_CNT_BAD_DLC]);
+    feed_all(f, 4u);
+    TEST_ASSERT_TRUE(pop(&s));
+    TEST_ASSERT_EQUAL_HEX8(HAL_HAS_ALL, s.valid);
+    TEST_ASSERT_EQUAL_UINT32(8u, rx.counters[HAL_CNT_RX_FRAMES]);
+}
+
+static void test_duplicates_and_late_frames_are_dropped(void)
+{
+    hal_can_frame_t f[HAL_CAN_SAMPLE_FRAMES], g[HAL_CAN_SAMPLE_FRAMES];
+    hal_sample_t s;
+    hal_can_rx_init(&rx);
+    frames_of(10u, 1000u, f);
+    hal_can_rx_frame(&rx, &f[0]);
+    hal_can_rx_frame(&rx, &f[0]); /* duplicate while assembling */
+    feed_all(&f[1], 3u);
+    TEST_ASSERT_TRUE(pop(&s));
+    hal_can_rx_frame(&rx, &f[2]); /* duplicate of an emitted sample */
+    hal_can_rx_frame(&rx, &f[3]);
+    TEST_ASSERT_EQUAL_UINT32(3u, rx.counters[HAL_CNT_DUPLICATE]);
+    TEST_ASSERT_FALSE(pop(&s));
+    /* sample 11 loses its mag frame; it is emitted without mag when 12 completes, and the
+     * mag frame arriving afterwards is late */
+    frames_of(11u, 2000u, f);
+    frames_of(12u, 3000u, g);
+    hal_can_rx_frame(&rx, &f[0]);
+    hal_can_rx_frame(&rx, &f[1]);
+    hal_can_rx_frame(&rx, &f[3]);
+    TEST_ASSERT_FALSE(pop(&s)); /* still waiting for the declared mag frame */
+    feed_all(g, 4u);
+    TEST_ASSERT_TRUE(pop(&s));
+    TEST_ASSERT_EQUAL_UINT16(11u, s.seq);
+    TEST_ASSERT_EQUAL_HEX8(HAL_HAS_GYRO | HAL_HAS_ACCEL, s.valid);
+    TEST_ASSERT_TRUE(pop(&s));
+    TEST_ASSERT_EQUAL_UINT16(12u, s.seq);
+    TEST_ASSERT_EQUAL_UINT32(1u, rx.counters[HAL_CNT_INCOMPLETE]);
+    hal_can_rx_frame(&rx, &f[2]);
+    TEST_ASSERT_EQUAL_UINT32(1u, rx.counters[HAL_CNT_LATE]);
+    TEST_ASSERT_FALSE(pop(&s));
+}
+
+static void test_reordering_within_and_across_samples(void)
+{
+    hal_can_frame_t f[HAL_CAN_SAMPLE_FRAMES], g[HAL_CAN_SAMPLE_FRAMES];
+    hal_sample_t s;
+    hal_can_rx_init(&rx);
+    /* IMU_SYNC first: the sample completes with its last declared sensor frame */
+    frames_of(5u, 500u, f);
+    hal_can_rx_frame(&rx, &f[3]);
+    hal_can_rx_frame(&rx, &f[2]);
+    hal_can_rx_frame(&rx, &f[0]);
+    TEST_ASSERT_FALSE(pop(&s));
+    hal_can_rx_frame(&rx, &f[1]);
+    TEST_ASSERT_TRUE(pop(&s));
+    TEST_ASSERT_EQUAL_HEX8(HAL_HAS_ALL, s.valid);
+    /* priority order of a CAN controller: IMU_GYRO of 7 before IMU_SYNC of 6 */
+    frames_of(6u, 600u, f);
+    frames_of(7u, 700u, g);
+    feed_all(f, 3u);
+    hal_can_rx_frame(&rx, &g[0]);
+    hal_can_rx_frame(&rx, &f[3]);
+    TEST_ASSERT_TRUE(pop(&s));
+    TEST_ASSERT_EQUAL_UINT16(6u, s.seq);
+    TEST_ASSERT_EQUAL_HEX8(HAL_HAS_ALL, s.valid);
+    feed_all(&g[1], 3u);
+    TEST_ASSERT_TRUE(pop(&s));
+    TEST_ASSERT_EQUAL_UINT16(7u, s.seq);
+    TEST_ASSERT_EQUAL_HEX8(HAL_HAS_ALL, s.valid);
+    TEST_ASSERT_EQUAL_UINT32(0u, rx.counters[HAL_CNT_LATE] + rx.counters[HAL_CNT_DISCARDED] +
+                                     rx.counters[HAL_CNT_INCOMPLETE]);
+}
+
+static void test_lost_sync_discards_the_sample(void)
+{
+    hal_can_frame_t f[HAL_CAN_SAMPLE_FRAMES];
+    hal_sample_t s;
+    uint16_t k;
+    hal_can_rx_init(&rx);
+    frames_of(20u, 2000u, f);
+    feed_all(f, 3u); /* IMU_SYNC of 20 lost */
+    for (k = 21u; k <= 22u; ++k) {
+        frames_of(k, 2000u + 10u * (k - 20u), f);
+        feed_all(f, 4u);
+    }
+    TEST_ASSERT_TRUE(pop(&s));
+    TEST_ASSERT_EQUAL_UINT16(21u, s.seq);
+    TEST_ASSERT_TRUE(pop(&s));
+    TEST_ASSERT_EQUAL_UINT16(22u, s.seq);
+    TEST_ASSERT_FALSE(pop(&s));
+    TEST_ASSERT_EQUAL_UINT32(1u, rx.counters[HAL_CNT_DISCARDED]);
+    /* end of input with a sample that has no IMU_SYNC: discarded by the flush too */
+    frames_of(23u, 2100u, f);
+    hal_can_rx_frame(&rx, &f[0]);
+    hal_can_rx_flush(&rx);
+    TEST_ASSERT_FALSE(pop(&s));
+    TEST_ASSERT_EQUAL_UINT32(2u, rx.counters[HAL_CNT_DISCARDED]);
+}
+
+static void test_optional_sensors_and_non_finite_values(void)
+{
+    hal_can_frame_t f[HAL_CAN_SAMPLE_FRAMES];
+    hal_sample_t in = make_sample(3u, 300u), s;
+    size_t n;
+    hal_can_rx_init(&rx);
+    in.valid = HAL_HAS_GYRO | HAL_HAS_ACCEL; /* no magnetometer in this sample */
+    in.accel[1] = NAN;                      /* and a broken accelerometer reading */
+    n = hal_can_encode_sample(&in, f);
+    TEST_ASSERT_EQUAL_UINT(2u, n); /* gyro + sync */
+    feed_all(f, n);
+    TEST_ASSERT_TRUE(pop(&s));
+    TEST_ASSERT_EQUAL_HEX8(HAL_HAS_GYRO, s.valid);
+}
+
+static void test_saturation_is_clamped_and_flagged(void)
+{
+    hal_can_frame_t f[HAL_CAN_SAMPLE_FRAMES];
+    hal_sample_t in = make_sample(4u, 400u), s;
+    hal_can_rx_init(&rx);
+    in.gyro[1] = 50.0f;     /* beyond +-32.767 rad/s */
+    in.accel[2] = -1000.0f; /* beyond +-163.835 m/s^2 */
+    feed_all(f, hal_can_encode_sample(&in, f));
+    TEST_ASSERT_TRUE(pop(&s));
+    TEST_ASSERT_EQUAL_HEX8(HAL_HAS_ALL, s.valid);
+    TEST_ASSERT_EQUAL_HEX8(HAL_HAS_GYRO | HAL_HAS_ACCEL, s.saturated);
+    TEST_ASSERT_FLOAT_WITHIN(1e-4f, 32.767f, s.gyro[1]);
+    TEST_ASSERT_FLOAT_WITHIN(1e-3f, -163.835f, s.accel[2]);
+    /* a sender that clamps without setting the Sat bit: the extreme raw value says it */
+    in = make_sample(5u, 500u);
+    TEST_ASSERT_EQUAL_UINT(4u, hal_can_encode_sample(&in, f));
+    {
+        struct canmsg_imu_mag_t m;
+        TEST_ASSERT_EQUAL_INT(0, canmsg_imu_mag_unpack(&m, f[2].data, 8u));
+        m.mag_x = INT16_MAX;
+        TEST_ASSERT_EQUAL_INT(8, canmsg_imu_mag_pack(f[2].data, &m, 8u));
+    }
+    feed_all(f, 4u);
+    TEST_ASSERT_TRUE(pop(&s));
+    TEST_ASSERT_EQUAL_HEX8(HAL_HAS_MAG, s.saturated);
+}
+
+static void test_time_and_sequence_wrap(void)
+{
+    hal_can_frame_t f[HAL_CAN_SAMPLE_FRAMES];
+    hal_sample_t s;
+    const uint64_t t0 = 0xFFFFFF00u; /* 256 us before the 32-bit wrap */
+    uint16_t seq = 65534u;
+    int k;
+    hal_can_rx_init(&rx);
+    for (k = 0; k < 4; ++k, ++seq) {
+        feed_all(f, frames_of(seq, t0 + 100u * (uint64_t)k, f));
+        TEST_ASSERT_TRUE(pop(&s));
+        TEST_ASSERT_EQUAL_UINT16(seq, s.seq);
+        TEST_ASSERT_EQUAL_UINT64(t0 + 100u * (uint64_t)k, s.t_us); /* unwrapped past 2^32 */
+    }
+    TEST_ASSERT_EQUAL_UINT32(0u, rx.counters[HAL_CNT_LATE] + rx.counters[HAL_CNT_DUPLICATE]);
+}
+
+static void test_sender_restart_is_accepted(void)
+{
+    hal_can_frame_t f[HAL_CAN_SAMPLE_FRAMES];
+    hal_sample_t s;
+    hal_can_rx_init(&rx);
+    feed_all(f, frames_of(30000u, 1000000u, f));
+    TEST_ASSERT_TRUE(pop(&s));
+    /* far behind the last sequence number: a restart, not a late frame */
+    feed_all(f, frames_of(0u, 10u, f));
+    TEST_ASSERT_TRUE(pop(&s));
+    TEST_ASSERT_EQUAL_UINT16(0u, s.seq);
+    TEST_ASSERT_EQUAL_UINT32(0u, rx.counters[HAL_CNT_LATE]);
+    /* within the late window behind it: late */
+    feed_all(f, frames_of(65530u, 5u, f));
+    TEST_ASSERT_EQUAL_UINT32(4u, rx.counters[HAL_CNT_LATE]);
+    TEST_ASSERT_FALSE(pop(&s));
+}
+
+static void test_ready_queue_overflow_drops_oldest(void)
+{
+    hal_can_frame_t f[HAL_CAN_SAMPLE_FRAMES];
+    hal_sample_t s;
+    uint16_t k;
+    hal_can_rx_init(&rx);
+    for (k = 0; k < HAL_CAN_READY_MAX + 2u; ++k) {
+        feed_all(f, frames_of(k, 100u * k, f));
+    }
+    TEST_ASSERT_EQUAL_UINT32(2u, rx.counters[HAL_CNT_DISCARDED]);
+    TEST_ASSERT_TRUE(pop(&s));
+    TEST_ASSERT_EQUAL_UINT16(2u, s.seq);
+}
+
+static void test_output_round_trip_and_clamping(void)
+{
+    hal_can_tx_t tx;
+    hal_output_t out, back;
+    hal_can_frame_t f[HAL_CAN_MAX_OUT_FRAMES];
+    size_t n, i;
+    int page;
+    memset(&out, 0, sizeof(out));
+    hal_can_tx_init(&tx);
+    out.kind = HAL_OUT_ATTITUDE;
+    out.euler[0] = 0.12345f;
+    out.euler[1] = -1.5f;
+    out.euler[2] = 3.14159f;
+    out.rates[0] = -0.5f;
+    out.rates[1] = 40.0f; /* beyond the wire range: clamped, OutSaturated */
+    out.rates[2] = 0.001f;
+    out.sigma[0] = 0.01f;
+    out.sigma[1] = 0.02f;
+    out.sigma[2] = 0.5f;
+    out.flags = HAL_FLAG_ALIGNED | HAL_FLAG_GAP;
+    out.att_flags = 0x0A01u;
+    out.seq = 4321u;
+    out.index = 77u;
+    for (i = 0; i < HAL_CNT_COUNT; ++i) {
+        out.counters[i] = 1000u * (uint32_t)i + 7u;
+    }
+    out.counters[HAL_CNT_RX_FRAMES] = UINT32_MAX;
+    n = hal_can_encode_output(&tx, &out, f);
+    TEST_ASSERT_EQUAL_UINT(5u, n);
+    memset(&back, 0, sizeof(back));
+    for (i = 0; i < n; ++i) {
+        TEST_ASSERT_TRUE(hal_can_decode_output(&f[i], &back));
+    }
+    for (i = 0; i < 3; ++i) {
+        TEST_ASSERT_FLOAT_WITHIN(0.00005f + 1e-6f, out.euler[i], back.euler[i]);
+        TEST_ASSERT_FLOAT_WITHIN(0.00005f + 1e-6f, out.sigma[i], back.sigma[i]);
+    }
+    TEST_ASSERT_FLOAT_WITHIN(1e-4f, 32.767f, back.rates[1]);
+    TEST_ASSERT_FLOAT_WITHIN(0.0005f, -0.5f, back.rates[0]);
+    TEST_ASSERT_EQUAL_HEX16(HAL_FLAG_ALIGNED | HAL_FLAG_GAP | HAL_FLAG_OUT_SATURATED, back.flags);
+    TEST_ASSERT_EQUAL_HEX32(0x0A01u, back.att_flags);
+    TEST_ASSERT_EQUAL_UINT16(4321u, back.seq);
+    TEST_ASSERT_EQUAL_UINT16(77u, back.index);
+    TEST_ASSERT_EQUAL_UINT32(UINT32_MAX, back.counters[HAL_CNT_RX_FRAMES]);
+    /* the counter pages cycle through every counter */
+    for (page = 1; page < HAL_CNT_COUNT; ++page) {
+        n = hal_can_encode_output(&tx, &out, f);
+        TEST_ASSERT_TRUE(hal_can_decode_output(&f[n - 1u], &back));
+    }
+    for (i = 0; i < HAL_CNT_COUNT; ++i) {
+        TEST_ASSERT_EQUAL_UINT32(out.counters[i], back.counters[i]);
+    }
+    /* a heartbeat is status + counters only */
+    out.kind = HAL_OUT_HEARTBEAT;
+    out.flags = HAL_FLAG_STALE | HAL_FLAG_HEARTBEAT;
+    n = hal_can_encode_output(&tx, &out, f);
+    TEST_ASSERT_EQUAL_UINT(2u, n);
+    TEST_ASSERT_EQUAL_HEX32(CANMSG_ATT_STATUS_FRAME_ID, f[0].id);
+    TEST_ASSERT_TRUE(hal_can_decode_output(&f[0], &back));
+    TEST_ASSERT_EQUAL_UINT8(HAL_OUT_HEARTBEAT, back.kind);
+    /* non-finite values (which the filter never produces) go out as 0, flagged */
+    out.kind = HAL_OUT_ATTITUDE;
+    out.flags = 0u;
+    out.rates[1] = 0.0f;
+    out.euler[2] = NAN;
+    n = hal_can_encode_output(&tx, &out, f);
+    TEST_ASSERT_TRUE(hal_can_decode_output(&f[0], &back));
+    TEST_ASSERT_EQUAL_FLOAT(0.0f, back.euler[2]);
+    TEST_ASSERT_TRUE(hal_can_decode_output(&f[3], &back));
+    TEST_ASSERT_EQUAL_HEX16(HAL_FLAG_OUT_SATURATED, back.flags);
+}
+
+static void test_names(void)
+{
+    TEST_ASSERT_EQUAL_STRING("unknown_id", hal_counter_name(HAL_CNT_UNKNOWN_ID));
+    TEST_ASSERT_EQUAL_STRING("outputs", hal_counter_name(HAL_CNT_OUTPUTS));
+    TEST_ASSERT_EQUAL_STRING("unknown_counter", hal_counter_name(HAL_CNT_COUNT));
+    TEST_ASSERT_EQUAL_STRING("link_down", hal_event_name(HAL_EV_LINK_DOWN));
+    TEST_ASSERT_EQUAL_STRING("unknown_event", hal_event_name(HAL_EV_COUNT));
+    TEST_ASSERT_EQUAL_STRING("HAL_ERR_LINK_DOWN", hal_status_name(HAL_ERR_LINK_DOWN));
+    {
+        uint32_t c = UINT32_MAX - 1u;
+        hal_count(&c);
+        hal_count(&c);
+        TEST_ASSERT_EQUAL_UINT32(UINT32_MAX, c);
+        c = 5u;
+        hal_count_n(&c, UINT32_MAX);
+        TEST_ASSERT_EQUAL_UINT32(UINT32_MAX, c);
+    }
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_clean_stream_reassembles_within_resolution);
+    RUN_TEST(test_unknown_id_and_bad_length_are_counted_and_ignored);
+    RUN_TEST(test_duplicates_and_late_frames_are_dropped);
+    RUN_TEST(test_reordering_within_and_across_samples);
+    RUN_TEST(test_lost_sync_discards_the_sample);
+    RUN_TEST(test_optional_sensors_and_non_finite_values);
+    RUN_TEST(test_saturation_is_clamped_and_flagged);
+    RUN_TEST(test_time_and_sequence_wrap);
+    RUN_TEST(test_sender_restart_is_accepted);
+    RUN_TEST(test_ready_queue_overflow_drops_oldest);
+    RUN_TEST(test_output_round_trip_and_clamping);
+    RUN_TEST(test_names);
+    return UNITY_END();
+}
