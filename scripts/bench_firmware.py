@@ -29,7 +29,15 @@ import sys
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 RUNNER = os.path.join(ROOT, "firmware", "target", "qemu_run.sh")
-MACHINES = {"cortex-m4f": "mps2-an386", "cortex-m3": "mps2-an385"}
+MACHINES = {"cortex-m4f": "mps2-an386", "cortex-m3": "mps2-an385", "cortex-m3-fixed": "mps2-an385"}
+# Toolchain file and estimator library of each preset (cortex-m3-fixed: the Q-format build,
+# docs/fixed_point.md).
+TOOLCHAINS = {"cortex-m4f": "cortex-m4f", "cortex-m3": "cortex-m3", "cortex-m3-fixed": "cortex-m3"}
+
+
+def core_lib(preset):
+    return "attekf_x" if preset.endswith("-fixed") else "attekf_f"
+
 STAGES = ("predict", "update_gyro", "update_accel", "update_mag", "step", "stages_sum")
 TARGET_INSNS = 6000       # full step on M4F
 TARGET_STATE_BYTES = 512  # x and P in float
@@ -53,22 +61,25 @@ def run(cmd, **kw):
     return r.stdout
 
 
-def build_dir(preset, build_type):
+def build_dir(preset, build_type, build_root=None):
+    if build_root is not None:
+        return os.path.join(build_root, f"{preset}-{build_type}")
     if build_type == "MinSizeRel":
         return os.path.join(ROOT, "build", preset)
     return os.path.join(ROOT, "build", f"bench-{preset}-{build_type}")
 
 
 def ensure_built(args, preset):
-    bdir = build_dir(preset, args.build_type)
+    bdir = build_dir(preset, args.build_type, args.build_root)
     if not os.path.isfile(os.path.join(bdir, "build.ninja")):
         log(args, f"configuring {os.path.relpath(bdir, ROOT)}")
-        if args.build_type == "MinSizeRel":
+        if args.build_type == "MinSizeRel" and args.build_root is None:
             run(["cmake", "--preset", preset], cwd=ROOT)
         else:
             run(["cmake", "-S", ROOT, "-B", bdir, "-G", "Ninja",
-                 "--toolchain", os.path.join(ROOT, "cmake", "toolchains", f"{preset}.cmake"),
+                 "--toolchain", os.path.join(ROOT, "cmake", "toolchains", f"{TOOLCHAINS[preset]}.cmake"),
                  f"-DCMAKE_BUILD_TYPE={args.build_type}",
+                 f"-DATTEKF_FIRMWARE_SCALAR={'FIXED' if preset.endswith('-fixed') else 'FLOAT'}",
                  f"-DPython3_EXECUTABLE={os.path.join(ROOT, '.venv', 'bin', 'python')}"], cwd=ROOT)
     log(args, f"building the benchmark images in {os.path.relpath(bdir, ROOT)}")
     run(["cmake", "--build", bdir, "--target", "attekf_bench", "attekf_footprint"], cwd=ROOT)
@@ -175,7 +186,8 @@ def footprint(args, preset, bdir):
             for s in d:
                 defs.setdefault(s, key)
     # closure from the estimator library's objects through undefined symbols
-    lib = [s for s in sizes if MEMBER.match(s) and os.path.basename(MEMBER.match(s).group(1)) == "libattekf_f.a"]
+    libname = f"lib{core_lib(preset)}.a"
+    lib = [s for s in sizes if MEMBER.match(s) and os.path.basename(MEMBER.match(s).group(1)) == libname]
     seen = set(lib)
     todo = list(lib)
     while todo:
@@ -189,16 +201,16 @@ def footprint(args, preset, bdir):
     for key in sorted(seen):
         m = MEMBER.match(key)
         name = os.path.basename(m.group(1))
-        group = f"estimator: {m.group(2).replace('.c.obj', '.c')}" if name == "libattekf_f.a" else name
+        group = f"estimator: {m.group(2).replace('.c.obj', '.c')}" if name == libname else name
         groups.setdefault(group, collections.Counter()).update(sizes[key])
     size_out = run(["arm-none-eabi-size", elf]).splitlines()[1].split()
     return {"groups": groups, "image": {"text": int(size_out[0]), "data": int(size_out[1]), "bss": int(size_out[2])},
             "elf": elf}
 
 
-def stack_frames(bdir, top=6):
+def stack_frames(bdir, top=6, lib="attekf_f"):
     rows = []
-    for su in glob.glob(os.path.join(bdir, "firmware", "CMakeFiles", "attekf_f.dir", "**", "*.su"), recursive=True):
+    for su in glob.glob(os.path.join(bdir, "firmware", "CMakeFiles", f"{lib}.dir", "**", "*.su"), recursive=True):
         with open(su, encoding="utf-8") as f:
             for line in f:
                 parts = line.rstrip("\n").split("\t")
@@ -296,6 +308,9 @@ def main():
     ap.add_argument("--samples", type=int, default=3000, help="benchmark samples, 20..1000000 (default 3000)")
     ap.add_argument("--build-type", default="MinSizeRel", choices=["MinSizeRel", "Release", "RelWithDebInfo"],
                     help="CMake build type; other than MinSizeRel (-Os) uses build/bench-<preset>-<type>")
+    ap.add_argument("--build-root", default=None,
+                    help="build in DIR/<preset>-<build type> instead of the presets' build/<preset> "
+                         "(a private tree while others use build/)")
     ap.add_argument("--quiet", action="store_true", help="no progress messages on stderr")
     args = ap.parse_args()
     if not 20 <= args.samples <= 1000000:
@@ -305,7 +320,7 @@ def main():
         for preset in args.presets:
             bdir = ensure_built(args, preset)
             results[preset] = {"bench": run_bench(args, preset, bdir), "fp": footprint(args, preset, bdir),
-                               "frames": stack_frames(bdir)}
+                               "frames": stack_frames(bdir, lib=core_lib(preset))}
     except BenchError as e:
         print(f"bench_firmware: {e}", file=sys.stderr)
         return 1

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Cross builds under QEMU, the Cortex-M part of the test suite (called by scripts/test.sh):
-# configures and builds build/cortex-m4f and build/cortex-m3 from CMakePresets.json, then
+# configures and builds build/cortex-m4f, build/cortex-m3 and build/cortex-m3-fixed (the
+# Q-format fixed-point build, docs/fixed_point.md) from CMakePresets.json, then
 # runs their ctest, which runs every image through firmware/target/qemu_run.sh:
 #   the core's and the application's Unity tests marked ON_TARGET (float build),
 #   firmware_bench_runs (benchmark image, SysTick instruction counting works),
@@ -13,7 +14,7 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
 JOBS="$(nproc)"
 status=0
-for preset in cortex-m4f cortex-m3; do
+for preset in cortex-m4f cortex-m3 cortex-m3-fixed; do
   start=$SECONDS
   echo "[test] $preset: configure + build (build/$preset)"
   if ! cmake --preset "$preset" >/dev/null; then

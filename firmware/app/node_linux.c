@@ -382,9 +382,8 @@ static void write_frame(void *user, const hal_can_frame_t *f)
     if (s->out == NULL) {
         return;
     }
-    if (fprintf(s->out, (f->id & 0x80000000u) ? "(%" PRIu64 ".%06" PRIu64 ") %s %08" PRIX32 "#"
-                                                : "(%" PRIu64 ".%06" PRIu64 ") %s %03" PRIX32 "#",
-                f->t_us / 1000000u, f->t_us % 1000000u, s->channel, f->id & 0x1FFFFFFFu) < 0) {
+    if (fprintf(s->out, "(%" PRIu64 ".%06" PRIu64 ") %s %0*" PRIX32 "#", f->t_us / 1000000u,
+                f->t_us % 1000000u, s->channel, (f->id & 0x80000000u) ? 8 : 3, f->id & 0x1FFFFFFFu) < 0) {
         s->write_error = 1;
     }
     for (i = 0; i < f->dlc; ++i) {

@@ -17,25 +17,36 @@ const att_settings_t att_default_settings = {
     .gyro_noise = EKF_C(0.005),
     .gyro_gate = EKF_C(0.0),
     .gyro_range = EKF_C(40.0),
+    .rest = {
+        .rest_gyro = EKF_C(0.035), /* 2 deg/s */
+        .rest_accel = EKF_C(0.5),
+        .rest_time = EKF_C(1.5),
+        .rest_tau = EKF_C(0.5),
+        .bias_tau = EKF_C(10.0),
+        .bias_max = EKF_C(0.035),
+    },
     /* accelerometer */
     .gravity = EKF_C(9.81),
     .accel_noise = EKF_C(0.5),
-    .accel_band = EKF_C(0.5),
-    .accel_reject = EKF_C(3.0),
-    .accel_gate = EKF_C(5.0),
+    .accel_band = EKF_C(0.0),
+    .accel_reject = EKF_C(50.0),
+    .accel_adapt_tau = EKF_C(0.5),
+    .accel_lpf_tau = EKF_C(1.0),
+    .accel_gate = EKF_C(10.0),
     .accel_range = EKF_C(160.0),
     /* magnetometer */
-    .mag_heading_noise = EKF_C(0.1),
-    .mag_gate = EKF_C(5.0),
+    .mag_heading_noise = EKF_C(0.5),
+    .mag_gate = EKF_C(3.0),
     .mag_norm_tol = EKF_C(0.15),
     .mag_dip_tol = EKF_C(0.17),
+    .mag_reset_time = EKF_C(10.0),
     .mag_ref_norm = EKF_C(0.0),
     .mag_ref_dip = EKF_C(0.0),
     .mag_declination = EKF_C(0.0),
     .mag_range = EKF_C(5000.0),
     /* robustness */
     .gate_timeout = EKF_C(1.0),
-    .gimbal_limit = EKF_C(1.4835298641951802), /* 85 deg */
+    .gimbal_limit = EKF_C(1.55), /* 88.8 deg */
     .dt_max = EKF_C(0.5),
     .heading_var_max = EKF_C(9.869604401089358), /* pi^2 */
     .var_floor = EKF_C(1e-10),
@@ -48,9 +59,13 @@ const att_settings_t att_default_settings = {
 
 enum { SENSOR_GYRO = 0, SENSOR_ACCEL = 1, SENSOR_MAG = 2 };
 
-/* Smallest accepted LDL^T pivot relative to its variance: a margin far above the
- * scalar's rounding, so that "positive definite" holds in exact arithmetic too. */
-#define ATT_PD_MARGIN (EKF_C(100) * EKF_SCALAR_EPS)
+/* Smallest accepted LDL^T pivot relative to its variance. The factorisation computed in
+ * the filter's scalar is the exact one of P + dP with |dP_ij| up to about n^2 eps
+ * sqrt(P_ii P_jj): the margin must be well above that, or a float P that is indefinite by
+ * 5e-5 of its diagonal passes (seen in the 10^6-step stress test). 10 n^2 eps is 1e-4 in
+ * float, far below the Euler-rate pivots (~euler_rate_rel = 1e-3) that the model keeps
+ * by design (docs/derivation.md, "Covariance bounds"). */
+#define ATT_PD_MARGIN ekf_mul(EKF_C(10 * ATT_N * ATT_N), EKF_SCALAR_EPS)
 
 static void count(uint32_t *c)
 {
@@ -86,9 +101,11 @@ ekf_status_t att_settings_check(const att_settings_t *s)
         !in_range(s->gyro_gate, EKF_C(0), big) || !in_range(s->gyro_range, EKF_C(1e-3), big) ||
         !in_range(s->gravity, EKF_C(0.1), big) || !in_range(s->accel_noise, EKF_C(1e-9), big) ||
         !in_range(s->accel_band, EKF_C(0), big) || !in_range(s->accel_reject, EKF_C(1e-6), big) ||
+        !in_range(s->accel_adapt_tau, EKF_C(0), big) || !in_range(s->accel_lpf_tau, EKF_C(0), big) ||
         !in_range(s->accel_gate, EKF_C(0), big) || !in_range(s->accel_range, s->gravity, big) ||
         !in_range(s->mag_heading_noise, EKF_C(1e-9), EKF_PI) || !in_range(s->mag_gate, EKF_C(0), big) ||
         !in_range(s->mag_norm_tol, EKF_C(1e-6), big) || !in_range(s->mag_dip_tol, EKF_C(1e-6), EKF_PI) ||
+        !in_range(s->mag_reset_time, EKF_C(0), big) ||
         !in_range(s->mag_ref_norm, EKF_C(0), big) ||
         !in_range(s->mag_ref_dip, ekf_neg(EKF_HALF_PI), EKF_HALF_PI) ||
         !in_range(s->mag_declination, ekf_neg(EKF_PI), EKF_PI) || !in_range(s->mag_range, EKF_C(1e-6), big) ||
@@ -97,8 +114,11 @@ ekf_status_t att_settings_check(const att_settings_t *s)
         !in_range(s->dt_max, EKF_C(1e-6), EKF_C(60)) || !in_range(s->heading_var_max, EKF_C(1e-6), big) ||
         !in_range(s->var_floor, EKF_C(1e-30), EKF_C(1e-2)) ||
         !in_range(s->init_tilt_sigma, EKF_C(1e-6), EKF_PI) ||
-        !in_range(s->init_heading_sigma, EKF_C(1e-6), EKF_C(2) * EKF_PI) ||
-        !in_range(s->init_rate_sigma, EKF_C(1e-6), big) || s->align_samples == 0u) {
+        !in_range(s->init_heading_sigma, EKF_C(1e-6), EKF_TWO_PI) ||
+        !in_range(s->init_rate_sigma, EKF_C(1e-6), big) || s->align_samples == 0u ||
+        !in_range(s->rest.rest_gyro, EKF_C(1e-6), big) || !in_range(s->rest.rest_accel, EKF_C(1e-6), big) ||
+        !in_range(s->rest.rest_time, EKF_C(0), big) || !in_range(s->rest.rest_tau, EKF_C(0), big) ||
+        !in_range(s->rest.bias_tau, EKF_C(0), big) || !in_range(s->rest.bias_max, EKF_C(0), s->gyro_range)) {
         return EKF_ERR_SETTINGS;
     }
     return EKF_OK;
@@ -117,6 +137,7 @@ ekf_status_t att_init(att_ekf_t *f, const att_settings_t *settings)
     }
     *f = zero;
     f->settings = *settings;
+    att_rest_reset(&f->rest);
     return EKF_OK;
 }
 
@@ -245,7 +266,7 @@ ekf_status_t att_align(att_ekf_t *f, const ekf_scalar_t accel[3], const ekf_scal
     if (st != EKF_OK) {
         return note(f, st);
     }
-    if (!(norm3(accel) > EKF_C(0.1) * s->gravity)) {
+    if (!(norm3(accel) > ekf_mul(EKF_C(0.1), s->gravity))) {
         return note(f, EKF_ERR_RANGE); /* no usable gravity direction (free fall) */
     }
     if (mag != NULL) {
@@ -299,6 +320,11 @@ ekf_status_t att_align(att_ekf_t *f, const ekf_scalar_t accel[3], const ekf_scal
     for (i = 0; i < 3; ++i) {
         f->gated_time[i] = EKF_C(0);
     }
+    /* the accelerometer low-pass starts from the alignment's (averaged) specific force */
+    for (i = 0; i < 3; ++i) {
+        f->accel_lp[i] = accel[i];
+    }
+    f->accel_lp_valid = 1u;
     f->flags = ATT_FLAG_ALIGNED;
     if (!use_mag) {
         f->flags |= ATT_FLAG_HEADING_LIMITED;
@@ -312,19 +338,84 @@ ekf_status_t att_align(att_ekf_t *f, const ekf_scalar_t accel[3], const ekf_scal
  * what W can produce from in-range body rates at the gimbal limit. Only reached under
  * inputs far outside normal use (very long steps at extreme rates), where it keeps P
  * finite; a congruence, so P stays positive definite. */
+/* ekf_cov_limit_variance, called only when it has something to do (9 calls per predict). */
+static void cap_variance(ekf_scalar_t P[ATT_N * ATT_N], int i, ekf_scalar_t max_var)
+{
+    if (P[i * ATT_N + i] > max_var) {
+        (void)ekf_cov_limit_variance(P, ATT_N, (uint8_t)i, max_var);
+    }
+}
+
 static void limit_variances(att_ekf_t *f)
 {
     const att_settings_t *s = &f->settings;
     const ekf_scalar_t rate_max = ekf_sq(s->gyro_range);
-    const ekf_scalar_t sec_lim = ekf_div(EKF_C(1), ekf_cos(s->gimbal_limit));
-    const ekf_scalar_t euler_rate_max = ekf_sq(ekf_mul(s->gyro_range, ekf_add(EKF_C(1), ekf_mul(EKF_C(2), sec_lim))));
+    /* The Euler-rate bound is at least (3 gyro_range)^2 (sec >= 1): its cosine is evaluated
+     * only when a variance exceeds that, never in normal use. Capping a body rate does not
+     * change the Euler-rate variances, so the test before the loop holds in it. */
+    ekf_scalar_t euler_rate_max = ekf_sq(ekf_mul(s->gyro_range, EKF_C(3)));
+    int i;
+    for (i = ATT_PHID; i <= ATT_PSID; ++i) {
+        if (f->P[i * ATT_N + i] > euler_rate_max) {
+            const ekf_scalar_t sec_lim = ekf_div(EKF_C(1), ekf_cos(s->gimbal_limit));
+            euler_rate_max = ekf_sq(ekf_mul(s->gyro_range, ekf_add(EKF_C(1), ekf_mul(EKF_C(2), sec_lim))));
+            break;
+        }
+    }
+    for (i = 0; i < 3; ++i) {
+        cap_variance(f->P, ATT_P + i, rate_max);
+        cap_variance(f->P, ATT_PHID + i, euler_rate_max);
+    }
+    cap_variance(f->P, ATT_PHI, ekf_sq(EKF_PI));
+    cap_variance(f->P, ATT_THETA, ekf_sq(EKF_HALF_PI));
+}
+
+static void cross(const ekf_scalar_t a[3], const ekf_scalar_t b[3], ekf_scalar_t out[3])
+{
+    out[0] = ekf_sub(ekf_mul(a[1], b[2]), ekf_mul(a[2], b[1]));
+    out[1] = ekf_sub(ekf_mul(a[2], b[0]), ekf_mul(a[0], b[2]));
+    out[2] = ekf_sub(ekf_mul(a[0], b[1]), ekf_mul(a[1], b[0]));
+}
+
+/* The accelerometer low-pass (accel_lpf_tau) lives in a frame that turns with the body:
+ * every prediction carries the filtered specific force into the new body frame with the
+ * body rates (dv/dt = -w x v for a vector fixed in the earth frame), every accelerometer
+ * sample is blended in. Gravity is earth-fixed, so it passes without lag; linear
+ * acceleration that averages to zero in the earth frame (shaking, vibration) is filtered
+ * out (docs/derivation.md, "Linear acceleration"). */
+static void accel_lp_turn(att_ekf_t *f, ekf_scalar_t dt)
+{
+    ekf_scalar_t th[3], c1[3], c2[3];
+    int i;
+    if (!f->accel_lp_valid) {
+        return;
+    }
+    for (i = 0; i < 3; ++i) {
+        th[i] = ekf_mul(f->x[ATT_P + i], dt);
+    }
+    if (ekf_add(ekf_add(ekf_sq(th[0]), ekf_sq(th[1])), ekf_sq(th[2])) > EKF_C(0.04)) {
+        /* more than 0.2 rad in one step (a gap, or beyond any IMU's rate): the series
+         * below would be wrong; start again from the next sample */
+        f->accel_lp_valid = 0u;
+        return;
+    }
+    /* second order in th = w dt: v - th x v + (th x (th x v)) / 2; first order loses
+     * gravity at fast rotation (|th| ~ 0.05 rad per sample) */
+    cross(th, f->accel_lp, c1);
+    cross(th, c1, c2);
+    for (i = 0; i < 3; ++i) {
+        f->accel_lp[i] = ekf_mac(ekf_sub(f->accel_lp[i], c1[i]), EKF_C(0.5), c2[i]);
+    }
+}
+
+static void accel_lp_blend(att_ekf_t *f, const ekf_scalar_t accel[3])
+{
+    const ekf_scalar_t k = ekf_div(f->last_dt, ekf_add(f->settings.accel_lpf_tau, f->last_dt));
     int i;
     for (i = 0; i < 3; ++i) {
-        (void)ekf_cov_limit_variance(f->P, ATT_N, (uint8_t)(ATT_P + i), rate_max);
-        (void)ekf_cov_limit_variance(f->P, ATT_N, (uint8_t)(ATT_PHID + i), euler_rate_max);
+        f->accel_lp[i] = f->accel_lp_valid ? ekf_mac(f->accel_lp[i], k, ekf_sub(accel[i], f->accel_lp[i])) : accel[i];
     }
-    (void)ekf_cov_limit_variance(f->P, ATT_N, ATT_PHI, ekf_sq(EKF_PI));
-    (void)ekf_cov_limit_variance(f->P, ATT_N, ATT_THETA, ekf_sq(EKF_HALF_PI));
+    f->accel_lp_valid = 1u;
 }
 
 static ekf_status_t predict_stage(att_ekf_t *f, ekf_scalar_t dt)
@@ -332,9 +423,8 @@ static ekf_status_t predict_stage(att_ekf_t *f, ekf_scalar_t dt)
     const att_settings_t *s;
     ekf_scalar_t xn[ATT_N];
     ekf_scalar_t d[ATT_GEN_F_NNZ];
-    ekf_scalar_t work[6 * ATT_N]; /* rows PHI..PSID of F differ from the identity */
     ekf_scalar_t g[9];
-    att_trig_t tn;
+    att_trig_t tm, tn;
     ekf_status_t st;
     int i;
 
@@ -350,16 +440,16 @@ static ekf_status_t predict_stage(att_ekf_t *f, ekf_scalar_t dt)
         return note(f, st);
     }
 
-    att_model_transition(f->x, NULL, dt, s->gimbal_limit, xn, &tn);
+    att_model_transition(f->x, NULL, dt, s->gimbal_limit, xn, &tm, &tn);
     if (!ekf_all_finite(xn, ATT_N)) {
         return note(f, EKF_ERR_NUMERIC);
     }
-    att_gen_transition_jacobian(&tn, f->x, dt, d);
-    st = ekf_cov_propagate(f->P, ATT_N, att_gen_f_pattern, d, ATT_GEN_F_NNZ, work,
-                           (uint16_t)(sizeof work / sizeof work[0]));
-    if (st != EKF_OK) {
-        return note(f, st == EKF_ERR_NOT_FINITE ? EKF_ERR_NUMERIC : st);
+    att_gen_transition_jacobian(&tm, &tn, f->x, dt, d);
+    /* P <- F P F^T, generated for F's fixed pattern (bit-identical to ekf_cov_propagate) */
+    if (!ekf_all_finite(d, ATT_GEN_F_NNZ)) {
+        return note(f, EKF_ERR_NUMERIC);
     }
+    att_gen_cov_propagate(f->P, d);
 
     /* Q = G diag(rate_walk^2 dt) G^T + angle random walk + the Euler rates' own error */
     att_gen_noise_jacobian(&tn, g);
@@ -371,6 +461,10 @@ static ekf_status_t predict_stage(att_ekf_t *f, ekf_scalar_t dt)
 
     for (i = 0; i < ATT_N; ++i) {
         f->x[i] = xn[i];
+    }
+    f->last_dt = dt;
+    if (s->accel_lpf_tau > EKF_C(0)) {
+        accel_lp_turn(f, dt);
     }
     f->flags &= ~ATT_FLAG_REMAPPED;
     if (att_model_normalise(f->x, f->P)) {
@@ -397,6 +491,13 @@ static ekf_status_t predict_stage(att_ekf_t *f, ekf_scalar_t dt)
 /* Gate of a sensor: its setting, or 0 (off) once it has gated continuously for longer
  * than gate_timeout. A filter that has drifted away from a sensor would otherwise reject
  * it forever. */
+/* 1 if an innovation would fail the gate of gate sigmas (a bypassed gate still judges the
+ * innovations, so that the bypass lasts until they are consistent again). */
+static int fails_gate(const ekf_innov_t *info, ekf_scalar_t gate)
+{
+    return gate > EKF_C(0) && ekf_sq(info->innovation) > ekf_mul(ekf_sq(gate), info->variance);
+}
+
 static ekf_scalar_t gate_for(att_ekf_t *f, int sensor, ekf_scalar_t gate)
 {
     const ekf_scalar_t timeout = f->settings.gate_timeout;
@@ -430,7 +531,7 @@ static ekf_status_t stage_gyro(att_ekf_t *f, const ekf_scalar_t gyro[3])
     ekf_scalar_t gate, r_var;
     ekf_status_t st;
     ekf_innov_t info;
-    int i, gated = 0;
+    int i, gated = 0, bypass_failed = 0;
 
     if (f == NULL) {
         return EKF_ERR_NULL;
@@ -447,7 +548,9 @@ static ekf_status_t stage_gyro(att_ekf_t *f, const ekf_scalar_t gyro[3])
     for (i = 0; i < 3; ++i) {
         const uint8_t idx = (uint8_t)(ATT_P + i);
         const ekf_hrow_t h = {&idx, &one, 1u};
-        st = ekf_update_scalar(f->x, f->P, ATT_N, &h, ekf_sub(gyro[i], f->x[ATT_P + i]), r_var, gate,
+        /* the rates net of the learned offset (att_rest.h) */
+        const ekf_scalar_t nu = ekf_sub(ekf_sub(gyro[i], f->rest.bias[i]), f->x[ATT_P + i]);
+        st = ekf_update_scalar(f->x, f->P, ATT_N, &h, nu, r_var, gate,
                                f->settings.var_floor, &info);
         f->diag.gyro_ratio[i] = info.test_ratio;
         if (st == EKF_GATED) {
@@ -457,6 +560,7 @@ static ekf_status_t stage_gyro(att_ekf_t *f, const ekf_scalar_t gyro[3])
             return note(f, st);
         } else {
             count(&f->diag.gyro_fused);
+            bypass_failed |= fails_gate(&info, f->settings.gyro_gate);
         }
     }
     /* the rates correlate with the angles: the update may have moved them too */
@@ -464,7 +568,7 @@ static ekf_status_t stage_gyro(att_ekf_t *f, const ekf_scalar_t gyro[3])
         count(&f->diag.remaps);
     }
     update_gimbal_flag(f);
-    gate_result(f, SENSOR_GYRO, gated);
+    gate_result(f, SENSOR_GYRO, gated || bypass_failed);
     if (gated) {
         f->flags |= ATT_FLAG_GYRO_GATED;
         return EKF_GATED;
@@ -477,12 +581,12 @@ static ekf_status_t stage_accel(att_ekf_t *f, const ekf_scalar_t accel[3])
 {
     const att_settings_t *s;
     ekf_scalar_t norm, err, r_var, gate, phi0, theta0;
-    ekf_scalar_t h[3], hj[6];
+    ekf_scalar_t a[3], h[3], hj[6];
     att_trig_t t;
     ekf_status_t st;
     ekf_innov_t info;
     static const uint8_t idx[2] = {ATT_PHI, ATT_THETA};
-    int i, gated = 0;
+    int i, gated = 0, bypass_failed = 0;
 
     if (f == NULL) {
         return EKF_ERR_NULL;
@@ -499,15 +603,30 @@ static ekf_status_t stage_accel(att_ekf_t *f, const ekf_scalar_t accel[3])
     err = ekf_abs(ekf_sub(norm, s->gravity));
     f->diag.accel_norm_error = err;
     f->flags &= ~(ATT_FLAG_ACCEL_DEWEIGHTED | ATT_FLAG_ACCEL_REJECTED | ATT_FLAG_ACCEL_GATED);
+    if (s->accel_lpf_tau > EKF_C(0)) {
+        accel_lp_blend(f, accel); /* every sample, fused or not */
+    }
+    if (s->accel_adapt_tau > EKF_C(0)) {
+        /* running mean over accel_adapt_tau of the squared norm error of what is fused (the
+         * low-passed force when the low-pass is on): how much linear acceleration is left
+         * in it lately, whatever this one sample's norm happens to be */
+        const ekf_scalar_t k = ekf_div(f->last_dt, ekf_add(s->accel_adapt_tau, f->last_dt));
+        const ekf_scalar_t e = (s->accel_lpf_tau > EKF_C(0)) ? ekf_sub(norm3(f->accel_lp), s->gravity) : err;
+        f->accel_dev_var = ekf_mac(f->accel_dev_var, k, ekf_sub(ekf_sq(e), f->accel_dev_var));
+    }
     if (err > s->accel_reject || !(norm > EKF_C(0))) {
         /* far from 1 g: the direction is dominated by linear acceleration */
         f->flags |= ATT_FLAG_ACCEL_REJECTED;
         count(&f->diag.accel_skipped);
         return EKF_SKIPPED;
     }
-    /* unit-vector measurement; variance (accel_noise / g)^2, inflated by
-     * 1 + (err / accel_band)^2 under linear acceleration */
-    r_var = ekf_sq(ekf_div(s->accel_noise, s->gravity));
+    /* unit-vector measurement; variance (accel_noise^2 + recent linear-acceleration
+     * variance) / g^2, optionally inflated by 1 + (err / accel_band)^2 for this sample
+     * (docs/derivation.md, "Linear acceleration") */
+    r_var = ekf_div(ekf_add(ekf_sq(s->accel_noise), f->accel_dev_var), ekf_sq(s->gravity));
+    if (f->accel_dev_var > ekf_sq(s->accel_noise)) {
+        f->flags |= ATT_FLAG_ACCEL_DEWEIGHTED; /* the noise variance at least doubled */
+    }
     if (s->accel_band > EKF_C(0)) {
         const ekf_scalar_t k = ekf_div(err, s->accel_band);
         r_var = ekf_mul(r_var, ekf_add(EKF_C(1), ekf_sq(k)));
@@ -516,6 +635,22 @@ static ekf_status_t stage_accel(att_ekf_t *f, const ekf_scalar_t accel[3])
         }
     }
     gate = gate_for(f, SENSOR_ACCEL, s->accel_gate);
+    if (s->accel_lpf_tau > EKF_C(0)) {
+        for (i = 0; i < 3; ++i) {
+            a[i] = f->accel_lp[i];
+        }
+        norm = norm3(a);
+        if (!(norm > EKF_C(0))) {
+            /* the shaking averaged to no force at all: no direction to fuse */
+            f->flags |= ATT_FLAG_ACCEL_REJECTED;
+            count(&f->diag.accel_skipped);
+            return EKF_SKIPPED;
+        }
+    } else {
+        for (i = 0; i < 3; ++i) {
+            a[i] = accel[i];
+        }
+    }
 
     /* h and H at the prior; the three components are fused sequentially with innovations
      * relinearised about the prior, which equals the batch update of the 3-vector
@@ -527,16 +662,19 @@ static ekf_status_t stage_accel(att_ekf_t *f, const ekf_scalar_t accel[3])
     theta0 = f->x[ATT_THETA];
     for (i = 0; i < 3; ++i) {
         const ekf_hrow_t hr = {idx, &hj[2 * i], 2u};
-        ekf_scalar_t nu = ekf_sub(ekf_div(accel[i], norm), h[i]);
+        ekf_scalar_t nu = ekf_sub(ekf_div(a[i], norm), h[i]);
         nu = ekf_sub(nu, ekf_mul(hj[2 * i], ekf_sub(f->x[ATT_PHI], phi0)));
         nu = ekf_sub(nu, ekf_mul(hj[2 * i + 1], ekf_sub(f->x[ATT_THETA], theta0)));
         st = ekf_update_scalar(f->x, f->P, ATT_N, &hr, nu, r_var, gate, s->var_floor, &info);
         f->diag.accel_ratio[i] = info.test_ratio;
+        bypass_failed |= (st == EKF_OK) && fails_gate(&info, s->accel_gate);
         if (st == EKF_GATED) {
             gated = 1;
             count(&f->diag.accel_gated);
         } else if (st != EKF_OK) {
-            (void)att_model_normalise(f->x, f->P);
+            if (att_model_normalise(f->x, f->P)) {
+                count(&f->diag.remaps);
+            }
             return note(f, st);
         } else {
             count(&f->diag.accel_fused);
@@ -546,7 +684,7 @@ static ekf_status_t stage_accel(att_ekf_t *f, const ekf_scalar_t accel[3])
         count(&f->diag.remaps);
     }
     update_gimbal_flag(f);
-    gate_result(f, SENSOR_ACCEL, gated);
+    gate_result(f, SENSOR_ACCEL, gated || bypass_failed);
     if (gated) {
         f->flags |= ATT_FLAG_ACCEL_GATED;
         return EKF_GATED;
@@ -573,7 +711,7 @@ static ekf_status_t stage_mag(att_ekf_t *f, const ekf_scalar_t mag[3])
     static const ekf_scalar_t one = EKF_C(1);
     const ekf_hrow_t hr = {&idx, &one, 1u};
     const att_settings_t *s;
-    ekf_scalar_t lev[3], norm, heading, nu;
+    ekf_scalar_t lev[3], norm, heading, nu, r_var;
     att_trig_t t;
     ekf_status_t st;
     ekf_innov_t info;
@@ -599,7 +737,7 @@ static ekf_status_t stage_mag(att_ekf_t *f, const ekf_scalar_t mag[3])
     norm = norm3(mag);
     meas_trig(f, &t);
     att_gen_mag_level(&t, mag, lev);
-    if (!(ekf_sqrt(ekf_add(ekf_sq(lev[0]), ekf_sq(lev[1]))) > EKF_C(1e-3) * norm)) {
+    if (!(ekf_sqrt(ekf_add(ekf_sq(lev[0]), ekf_sq(lev[1]))) > ekf_mul(EKF_C(1e-3), norm))) {
         /* no horizontal component (or no field at all): no heading information */
         f->flags |= ATT_FLAG_MAG_DISTURBED;
         count(&f->diag.mag_skipped);
@@ -624,8 +762,30 @@ static ekf_status_t stage_mag(att_ekf_t *f, const ekf_scalar_t mag[3])
         return EKF_SKIPPED;
     }
     nu = ekf_wrap_pi(ekf_sub(heading, f->x[ATT_PSI]));
-    st = ekf_update_scalar(f->x, f->P, ATT_N, &hr, nu, ekf_sq(s->mag_heading_noise),
-                           gate_for(f, SENSOR_MAG, s->mag_gate), s->var_floor, &info);
+    if (s->mag_reset_time > EKF_C(0) && f->gated_time[SENSOR_MAG] > s->mag_reset_time) {
+        /* An undisturbed field (norm and dip as referenced) has disagreed with the heading
+         * beyond the gate for mag_reset_time: the heading is what is wrong (lost during
+         * gyro saturation, or tilted by sustained acceleration). Take the magnetic heading
+         * with the initial uncertainty. Long on purpose: a magnet fixed to the sensor can
+         * pass the norm and dip tests for seconds. */
+        reset_heading(f, heading, ekf_min(ekf_sq(s->init_heading_sigma), s->heading_var_max));
+        count(&f->diag.heading_resets);
+        count(&f->diag.mag_fused);
+        gate_result(f, SENSOR_MAG, 0);
+        return EKF_OK;
+    }
+    /* The heading comes from the field levelled with the estimated tilt, and a tilt error
+     * e moves it by about tan(dip) e. While linear acceleration disturbs the tilt (its
+     * running variance accel_dev_var, m/s^2 squared, is a tilt variance of
+     * accel_dev_var / g^2), the heading is trusted that much less (docs/derivation.md,
+     * "Magnetometer"). */
+    {
+        const ekf_scalar_t tan_dip = ekf_div(ekf_sin(f->mag_ref_dip), ekf_max(ekf_cos(f->mag_ref_dip), EKF_C(0.1)));
+        r_var = ekf_mac(ekf_sq(s->mag_heading_noise), ekf_sq(tan_dip),
+                        ekf_div(f->accel_dev_var, ekf_sq(s->gravity)));
+    }
+    st = ekf_update_scalar(f->x, f->P, ATT_N, &hr, nu, r_var, gate_for(f, SENSOR_MAG, s->mag_gate),
+                           s->var_floor, &info);
     f->diag.mag_ratio = info.test_ratio;
     if (st == EKF_GATED) {
         count(&f->diag.mag_gated);
@@ -638,7 +798,9 @@ static ekf_status_t stage_mag(att_ekf_t *f, const ekf_scalar_t mag[3])
     }
     count(&f->diag.mag_fused);
     gate_result(f, SENSOR_MAG, 0);
-    (void)att_model_normalise(f->x, f->P);
+    if (att_model_normalise(f->x, f->P)) {
+        count(&f->diag.remaps);
+    }
     return EKF_OK;
 }
 
@@ -708,8 +870,8 @@ static ekf_status_t align_step(att_ekf_t *f, const att_sample_t *sm, att_step_re
     }
     {
         ekf_scalar_t acc[3], mag[3];
-        const ekf_scalar_t na = EKF_C(f->align_count);
-        const ekf_scalar_t nm = EKF_C(f->align_mag_count);
+        const ekf_scalar_t na = ekf_from_int((int32_t)f->align_count);
+        const ekf_scalar_t nm = ekf_from_int((int32_t)f->align_mag_count);
         for (i = 0; i < 3; ++i) {
             acc[i] = ekf_div(f->align_acc[i], na);
             mag[i] = (f->align_mag_count > 0u) ? ekf_div(f->align_mag[i], nm) : EKF_C(0);
@@ -729,7 +891,7 @@ static ekf_status_t align_step(att_ekf_t *f, const att_sample_t *sm, att_step_re
 
 ekf_status_t att_step(att_ekf_t *f, const att_sample_t *sample, att_step_report_t *report)
 {
-    att_step_report_t local;
+    att_step_report_t local = {EKF_OK, EKF_OK, EKF_OK, EKF_OK}; /* set below; initialised for the analysers */
     att_step_report_t *rep = (report != NULL) ? report : &local;
     ekf_status_t st;
 
@@ -739,6 +901,15 @@ ekf_status_t att_step(att_ekf_t *f, const att_sample_t *sample, att_step_report_
     rep->mag = EKF_OK;
     if (f == NULL || sample == NULL) {
         return EKF_ERR_NULL;
+    }
+    /* rest detection sees every complete sample, from the first one on, so that the
+     * initial rest already yields the gyroscope offset */
+    f->flags &= ~ATT_FLAG_AT_REST;
+    if ((sample->valid & (ATT_HAS_GYRO | ATT_HAS_ACCEL)) == (ATT_HAS_GYRO | ATT_HAS_ACCEL) &&
+        check_dt(f, sample->dt) == EKF_OK && check_vec(sample->gyro, f->settings.gyro_range) == EKF_OK &&
+        check_vec(sample->accel, f->settings.accel_range) == EKF_OK &&
+        att_rest_update(&f->rest, &f->settings.rest, sample->gyro, sample->accel, sample->dt)) {
+        f->flags |= ATT_FLAG_AT_REST;
     }
     if ((f->flags & ATT_FLAG_ALIGNED) == 0u) {
         return align_step(f, sample, rep);
@@ -788,6 +959,13 @@ void att_get_body_rates(const att_ekf_t *f, ekf_scalar_t w[3])
     w[0] = f->x[ATT_P];
     w[1] = f->x[ATT_Q];
     w[2] = f->x[ATT_R];
+}
+
+void att_get_gyro_bias(const att_ekf_t *f, ekf_scalar_t b[3])
+{
+    b[0] = f->rest.bias[0];
+    b[1] = f->rest.bias[1];
+    b[2] = f->rest.bias[2];
 }
 
 void att_get_euler_rates(const att_ekf_t *f, ekf_scalar_t e[3])

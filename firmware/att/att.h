@@ -12,7 +12,9 @@
  * The first samples with an accelerometer reading align the filter (roll and pitch from
  * gravity, heading from the magnetometer when there is one); att_step then runs
  *     gyro update -> predict(dt) -> accelerometer update -> magnetometer update
- * (docs/derivation.md, "Step order"). The individual stages are public too.
+ * (docs/derivation.md, "Step order"). The individual stages are public too. Every
+ * complete sample also feeds the rest detector, which learns the gyroscope offset that
+ * the gyro update subtracts (att_rest.h).
  *
  * Units: SI inside (rad, rad/s, m/s^2, s); the magnetometer in any unit (uT suggested),
  * used consistently with mag_range and mag_ref_norm. Frames: body to ENU (att_defs.h).
@@ -26,6 +28,7 @@
 #include <stdint.h>
 
 #include "att_defs.h"
+#include "att_rest.h"
 #include "ekf.h"
 
 /* Settings: every tunable, with its unit. att_default_settings holds the defaults. */
@@ -41,12 +44,22 @@ typedef struct {
     ekf_scalar_t gyro_noise; /* white noise, 1 sigma per sample, rad/s */
     ekf_scalar_t gyro_gate;  /* innovation gate, sigmas; 0 = off */
     ekf_scalar_t gyro_range; /* |component| above this is EKF_ERR_RANGE, rad/s */
+    att_rest_settings_t rest; /* rest detection and gyroscope offset estimation (att_rest.h) */
     /* accelerometer */
     ekf_scalar_t gravity;       /* magnitude of gravity, m/s^2 */
     ekf_scalar_t accel_noise;   /* white noise incl. unmodelled motion, 1 sigma per axis, m/s^2 */
     ekf_scalar_t accel_band;    /* | |a| - g | at which the noise variance is doubled, m/s^2
                                    (de-weighting under linear acceleration); 0 = off */
     ekf_scalar_t accel_reject;  /* | |a| - g | above which the sample is not fused, m/s^2 */
+    ekf_scalar_t accel_adapt_tau; /* s: time constant of the running mean of ( |a| - g )^2
+                                     (a: the low-passed force if accel_lpf_tau > 0), the
+                                     variance of the linear acceleration added to
+                                     accel_noise^2 (adaptive noise, "Linear acceleration"
+                                     in docs/derivation.md); 0 = off */
+    ekf_scalar_t accel_lpf_tau;   /* s: the accelerometer is low-passed in a frame that turns
+                                     with the body rates (an earth-fixed frame), so that
+                                     linear acceleration averages out and gravity does not
+                                     lag ("Linear acceleration" in docs/derivation.md); 0 = off */
     ekf_scalar_t accel_gate;    /* innovation gate, sigmas; 0 = off */
     ekf_scalar_t accel_range;   /* |component| above this is EKF_ERR_RANGE, m/s^2 */
     /* magnetometer (heading, tilt-compensated) */
@@ -54,13 +67,18 @@ typedef struct {
     ekf_scalar_t mag_gate;          /* innovation gate, sigmas; 0 = off */
     ekf_scalar_t mag_norm_tol;      /* allowed | |m| / ref - 1 |, fraction; larger: disturbed */
     ekf_scalar_t mag_dip_tol;       /* allowed |dip - ref dip|, rad; larger: disturbed */
+    ekf_scalar_t mag_reset_time;    /* s of continuous gating of an undisturbed field after which
+                                       the heading is reset to the magnetic heading; 0 = never */
     ekf_scalar_t mag_ref_norm;      /* reference field norm (mag units); 0 = learn at alignment */
     ekf_scalar_t mag_ref_dip;       /* reference dip, rad, positive down; used if mag_ref_norm > 0 */
     ekf_scalar_t mag_declination;   /* magnetic declination, rad, east positive */
     ekf_scalar_t mag_range;         /* |component| above this is EKF_ERR_RANGE (mag units) */
     /* robustness */
-    ekf_scalar_t gate_timeout;  /* s of continuous gating of one sensor after which its gate
-                                   is bypassed until a fusion passes again; 0 = never */
+    ekf_scalar_t gate_timeout;  /* s of continuous gating of one sensor after which its gate is
+                                   bypassed: the gyro's and accelerometer's until their
+                                   innovations pass it again, the magnetometer's for one
+                                   sample (a field that passes the norm and dip tests can
+                                   still be disturbed); 0 = never */
     ekf_scalar_t gimbal_limit;  /* |theta| above this (rad, < pi/2): kinematics clamped,
                                    heading held, ATT_FLAG_GIMBAL_LOCK */
     ekf_scalar_t dt_max;        /* longest accepted time step, s */
@@ -78,7 +96,7 @@ extern const att_settings_t att_default_settings;
 /* Status flags (att_flags()). "last" means the most recent sample of that sensor. */
 #define ATT_FLAG_ALIGNED          (1u << 0)  /* initial attitude set */
 #define ATT_FLAG_GIMBAL_LOCK      (1u << 1)  /* |theta| > gimbal_limit */
-#define ATT_FLAG_ACCEL_DEWEIGHTED (1u << 2)  /* last accel: norm off g, noise inflated */
+#define ATT_FLAG_ACCEL_DEWEIGHTED (1u << 2)  /* last accel: linear acceleration, noise variance >= doubled */
 #define ATT_FLAG_ACCEL_REJECTED   (1u << 3)  /* last accel: norm beyond accel_reject, not fused */
 #define ATT_FLAG_MAG_DISTURBED    (1u << 4)  /* last mag: norm or dip off reference, not fused */
 #define ATT_FLAG_HEADING_HELD     (1u << 5)  /* last mag: not fused because of gimbal lock */
@@ -89,6 +107,7 @@ extern const att_settings_t att_default_settings;
 #define ATT_FLAG_HEADING_LIMITED  (1u << 10) /* heading variance at heading_var_max */
 #define ATT_FLAG_REMAPPED         (1u << 11) /* last predict: pitch passed +-90 deg, remapped */
 #define ATT_FLAG_COV_REPAIRED     (1u << 12) /* last call: P was loaded to stay positive definite */
+#define ATT_FLAG_AT_REST          (1u << 13) /* last sample: at rest, gyroscope offset learned */
 
 /* Counters saturate at UINT32_MAX. Test ratios: innovation^2 / (gate^2 S), > 1 gated. */
 typedef struct {
@@ -104,7 +123,8 @@ typedef struct {
     uint32_t rejected;        /* calls refused for bad input (status >= EKF_ERR_NULL and < EKF_GATED) */
     uint32_t numeric;         /* updates refused with EKF_ERR_NUMERIC */
     uint32_t remaps;          /* pitch remaps through +-90 deg */
-    uint32_t cov_repairs;     /* predictions after which P needed diagonal loading */
+    uint32_t cov_repairs;     /* calls after which P needed diagonal loading */
+    uint32_t heading_resets;  /* heading set to the magnetic heading (mag_reset_time) */
     ekf_scalar_t gyro_ratio[3];
     ekf_scalar_t accel_ratio[3];
     ekf_scalar_t mag_ratio;
@@ -125,6 +145,11 @@ typedef struct {
     uint16_t align_count;
     uint16_t align_mag_count;
     ekf_scalar_t gated_time[3]; /* s of continuous gating: gyro, accel, mag */
+    ekf_scalar_t accel_dev_var; /* running mean of ( |a| - g )^2, (m/s^2)^2 */
+    ekf_scalar_t accel_lp[3];   /* low-passed specific force, body frame, m/s^2 */
+    uint8_t accel_lp_valid;     /* accel_lp holds a sample */
+    ekf_scalar_t last_dt;       /* s, of the last prediction (time base of the running means) */
+    att_rest_t rest;            /* rest detector and gyroscope offset */
     uint32_t flags;
     att_diag_t diag;
 } att_ekf_t;
@@ -180,6 +205,8 @@ ekf_status_t att_update_mag(att_ekf_t *f, const ekf_scalar_t mag[3]);
 void att_get_euler(const att_ekf_t *f, ekf_scalar_t euler[3]);       /* phi, theta, psi, rad */
 void att_get_body_rates(const att_ekf_t *f, ekf_scalar_t w[3]);      /* p, q, r, rad/s */
 void att_get_euler_rates(const att_ekf_t *f, ekf_scalar_t e[3]);     /* rad/s */
+/* Gyroscope offset learned at rest (rad/s, body frame), subtracted from every gyro sample. */
+void att_get_gyro_bias(const att_ekf_t *f, ekf_scalar_t b[3]);
 void att_get_quaternion(const att_ekf_t *f, ekf_scalar_t q[4]);      /* w, x, y, z: body to ENU */
 void att_get_variances(const att_ekf_t *f, ekf_scalar_t var[ATT_N]); /* diagonal of P */
 const ekf_scalar_t *att_state(const att_ekf_t *f);                   /* x[ATT_N] */

@@ -8,9 +8,23 @@
 #include "att_gen.h"
 
 const ekf_nz_t att_gen_f_pattern[ATT_GEN_F_NNZ] = {
+    {ATT_PHI, ATT_P},
+    {ATT_PHI, ATT_Q},
+    {ATT_PHI, ATT_R},
+    {ATT_PHI, ATT_PHI},
+    {ATT_PHI, ATT_THETA},
     {ATT_PHI, ATT_PHID},
-    {ATT_THETA, ATT_THETAD},
-    {ATT_PSI, ATT_PSID},
+    {ATT_PHI, ATT_THETAD},
+    {ATT_THETA, ATT_Q},
+    {ATT_THETA, ATT_R},
+    {ATT_THETA, ATT_PHI},
+    {ATT_THETA, ATT_PHID},
+    {ATT_PSI, ATT_Q},
+    {ATT_PSI, ATT_R},
+    {ATT_PSI, ATT_PHI},
+    {ATT_PSI, ATT_THETA},
+    {ATT_PSI, ATT_PHID},
+    {ATT_PSI, ATT_THETAD},
     {ATT_PHID, ATT_P},
     {ATT_PHID, ATT_Q},
     {ATT_PHID, ATT_R},
@@ -18,11 +32,14 @@ const ekf_nz_t att_gen_f_pattern[ATT_GEN_F_NNZ] = {
     {ATT_PHID, ATT_THETA},
     {ATT_PHID, ATT_PHID},
     {ATT_PHID, ATT_THETAD},
+    {ATT_THETAD, ATT_P},
     {ATT_THETAD, ATT_Q},
     {ATT_THETAD, ATT_R},
     {ATT_THETAD, ATT_PHI},
+    {ATT_THETAD, ATT_THETA},
     {ATT_THETAD, ATT_PHID},
     {ATT_THETAD, ATT_THETAD},
+    {ATT_PSID, ATT_P},
     {ATT_PSID, ATT_Q},
     {ATT_PSID, ATT_R},
     {ATT_PSID, ATT_PHI},
@@ -31,6 +48,61 @@ const ekf_nz_t att_gen_f_pattern[ATT_GEN_F_NNZ] = {
     {ATT_PSID, ATT_THETAD},
     {ATT_PSID, ATT_PSID}
 };
+
+void att_gen_cov_propagate(ekf_scalar_t P[ATT_N * ATT_N], const ekf_scalar_t d[ATT_GEN_F_NNZ])
+{
+    ekf_scalar_t a[6][ATT_N]; /* rows ATT_PHI, ATT_THETA, ATT_PSI, ATT_PHID, ATT_THETAD, ATT_PSID of A = F P */
+    int j;
+    for (j = 0; j < ATT_N; ++j) {
+        const ekf_scalar_t *pj = &P[j * ATT_N]; /* column j of P (symmetric) */
+        a[0][j] = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(pj[ATT_PHI], d[0], pj[ATT_P]), d[1], pj[ATT_Q]), d[2], pj[ATT_R]), d[3], pj[ATT_PHI]), d[4], pj[ATT_THETA]), d[5], pj[ATT_PHID]), d[6], pj[ATT_THETAD]);
+        a[1][j] = ekf_mac(ekf_mac(ekf_mac(ekf_mac(pj[ATT_THETA], d[7], pj[ATT_Q]), d[8], pj[ATT_R]), d[9], pj[ATT_PHI]), d[10], pj[ATT_PHID]);
+        a[2][j] = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(pj[ATT_PSI], d[11], pj[ATT_Q]), d[12], pj[ATT_R]), d[13], pj[ATT_PHI]), d[14], pj[ATT_THETA]), d[15], pj[ATT_PHID]), d[16], pj[ATT_THETAD]);
+        a[3][j] = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(pj[ATT_PHID], d[17], pj[ATT_P]), d[18], pj[ATT_Q]), d[19], pj[ATT_R]), d[20], pj[ATT_PHI]), d[21], pj[ATT_THETA]), d[22], pj[ATT_PHID]), d[23], pj[ATT_THETAD]);
+        a[4][j] = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(pj[ATT_THETAD], d[24], pj[ATT_P]), d[25], pj[ATT_Q]), d[26], pj[ATT_R]), d[27], pj[ATT_PHI]), d[28], pj[ATT_THETA]), d[29], pj[ATT_PHID]), d[30], pj[ATT_THETAD]);
+        a[5][j] = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(pj[ATT_PSID], d[31], pj[ATT_P]), d[32], pj[ATT_Q]), d[33], pj[ATT_R]), d[34], pj[ATT_PHI]), d[35], pj[ATT_THETA]), d[36], pj[ATT_PHID]), d[37], pj[ATT_THETAD]), d[38], pj[ATT_PSID]);
+    }
+    static const uint8_t rows[6] = {ATT_PHI, ATT_THETA, ATT_PSI, ATT_PHID, ATT_THETAD, ATT_PSID};
+    for (j = 0; j < 6; ++j) {
+        const ekf_scalar_t *ai = a[j];
+        const int ri = rows[j];
+        ekf_scalar_t *pr = &P[ri * ATT_N];
+        ekf_scalar_t v;
+        pr[ATT_P] = P[ATT_P * ATT_N + ri] = ai[ATT_P];
+        pr[ATT_Q] = P[ATT_Q * ATT_N + ri] = ai[ATT_Q];
+        pr[ATT_R] = P[ATT_R * ATT_N + ri] = ai[ATT_R];
+        if (j <= 0) {
+            v = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ai[ATT_PHI], d[0], ai[ATT_P]), d[1], ai[ATT_Q]), d[2], ai[ATT_R]), d[3], ai[ATT_PHI]), d[4], ai[ATT_THETA]), d[5], ai[ATT_PHID]), d[6], ai[ATT_THETAD]);
+            pr[ATT_PHI] = v;
+            P[ATT_PHI * ATT_N + ri] = v;
+        }
+        if (j <= 1) {
+            v = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ai[ATT_THETA], d[7], ai[ATT_Q]), d[8], ai[ATT_R]), d[9], ai[ATT_PHI]), d[10], ai[ATT_PHID]);
+            pr[ATT_THETA] = v;
+            P[ATT_THETA * ATT_N + ri] = v;
+        }
+        if (j <= 2) {
+            v = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ai[ATT_PSI], d[11], ai[ATT_Q]), d[12], ai[ATT_R]), d[13], ai[ATT_PHI]), d[14], ai[ATT_THETA]), d[15], ai[ATT_PHID]), d[16], ai[ATT_THETAD]);
+            pr[ATT_PSI] = v;
+            P[ATT_PSI * ATT_N + ri] = v;
+        }
+        if (j <= 3) {
+            v = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ai[ATT_PHID], d[17], ai[ATT_P]), d[18], ai[ATT_Q]), d[19], ai[ATT_R]), d[20], ai[ATT_PHI]), d[21], ai[ATT_THETA]), d[22], ai[ATT_PHID]), d[23], ai[ATT_THETAD]);
+            pr[ATT_PHID] = v;
+            P[ATT_PHID * ATT_N + ri] = v;
+        }
+        if (j <= 4) {
+            v = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ai[ATT_THETAD], d[24], ai[ATT_P]), d[25], ai[ATT_Q]), d[26], ai[ATT_R]), d[27], ai[ATT_PHI]), d[28], ai[ATT_THETA]), d[29], ai[ATT_PHID]), d[30], ai[ATT_THETAD]);
+            pr[ATT_THETAD] = v;
+            P[ATT_THETAD * ATT_N + ri] = v;
+        }
+        if (j <= 5) {
+            v = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ai[ATT_PSID], d[31], ai[ATT_P]), d[32], ai[ATT_Q]), d[33], ai[ATT_R]), d[34], ai[ATT_PHI]), d[35], ai[ATT_THETA]), d[36], ai[ATT_PHID]), d[37], ai[ATT_THETAD]), d[38], ai[ATT_PSID]);
+            pr[ATT_PSID] = v;
+            P[ATT_PSID * ATT_N + ri] = v;
+        }
+    }
+}
 
 void att_gen_euler_rates(const att_trig_t *t, const ekf_scalar_t w[3], ekf_scalar_t out[3])
 {
@@ -64,48 +136,148 @@ void att_gen_body_rates(const att_trig_t *t, const ekf_scalar_t e[3], ekf_scalar
     out[2] = ekf_sub(ekf_mul(cph, t0), ekf_mul(sph, thetad));
 }
 
-void att_gen_transition_jacobian(const att_trig_t *t, const ekf_scalar_t x[ATT_N], ekf_scalar_t dt, ekf_scalar_t d[ATT_GEN_F_NNZ])
+void att_gen_transition_jacobian(const att_trig_t *tm, const att_trig_t *t, const ekf_scalar_t x[ATT_N], ekf_scalar_t dt, ekf_scalar_t d[ATT_GEN_F_NNZ])
 {
+    const ekf_scalar_t sphm = tm->sphi;
+    const ekf_scalar_t cphm = tm->cphi;
+    const ekf_scalar_t sthm = tm->sth;
+    const ekf_scalar_t secthm = tm->secth;
     const ekf_scalar_t sph = t->sphi;
     const ekf_scalar_t cph = t->cphi;
     const ekf_scalar_t sth = t->sth;
     const ekf_scalar_t secth = t->secth;
     const ekf_scalar_t q = x[ATT_Q];
     const ekf_scalar_t r = x[ATT_R];
-    const ekf_scalar_t t0 = ekf_mul(secth, sph);
-    const ekf_scalar_t t1 = ekf_mul(cph, secth);
-    const ekf_scalar_t t2 = ekf_mul(r, sph);
-    const ekf_scalar_t t3 = ekf_mul(secth, ekf_sub(ekf_mul(cph, q), t2));
-    const ekf_scalar_t t4 = ekf_mul(cph, r);
-    const ekf_scalar_t t5 = ekf_mul(secth, secth);
-    const ekf_scalar_t t6 = ekf_mul(ekf_mul(sth, sth), t5);
-    const ekf_scalar_t t7 = ekf_mul(q, sph);
-    const ekf_scalar_t t8 = ekf_add(t4, t7);
-    const ekf_scalar_t t9 = ekf_add(ekf_add(t8, ekf_mul(t4, t6)), ekf_mul(t6, t7));
-    const ekf_scalar_t t10 = ekf_mul(dt, t8);
-    const ekf_scalar_t t11 = ekf_mul(sth, t5);
+    const ekf_scalar_t t0 = ekf_mul(dt, sphm);
+    const ekf_scalar_t t1 = ekf_mul(secthm, t0);
+    const ekf_scalar_t t2 = ekf_mul(sthm, t1);
+    const ekf_scalar_t t3 = ekf_mul(cphm, dt);
+    const ekf_scalar_t t4 = ekf_mul(secthm, t3);
+    const ekf_scalar_t t5 = ekf_mul(sthm, t4);
+    const ekf_scalar_t t6 = ekf_mul(cphm, q);
+    const ekf_scalar_t t7 = ekf_mul(r, sphm);
+    const ekf_scalar_t t8 = ekf_mul(secthm, ekf_sub(t6, t7));
+    const ekf_scalar_t t9 = ekf_mul(dt, t8);
+    const ekf_scalar_t t10 = ekf_mul(cphm, r);
+    const ekf_scalar_t t11 = ekf_mul(secthm, secthm);
+    const ekf_scalar_t t12 = ekf_mul(ekf_mul(sthm, sthm), t11);
+    const ekf_scalar_t t13 = ekf_mul(q, sphm);
+    const ekf_scalar_t t14 = ekf_add(t10, t13);
+    const ekf_scalar_t t15 = ekf_add(ekf_add(t14, ekf_mul(t10, t12)), ekf_mul(t12, t13));
+    const ekf_scalar_t t16 = ekf_mul(dt, dt);
+    const ekf_scalar_t t17 = ekf_mul(EKF_C(0.5), t16);
+    const ekf_scalar_t t18 = ekf_mul(t17, t8);
+    const ekf_scalar_t t19 = ekf_mul(dt, t14);
+    const ekf_scalar_t t20 = ekf_mul(t14, t17);
+    const ekf_scalar_t t21 = ekf_mul(sthm, t11);
+    const ekf_scalar_t t22 = ekf_mul(cph, q);
+    const ekf_scalar_t t23 = ekf_mul(secth, sth);
+    const ekf_scalar_t t24 = ekf_mul(t22, t23);
+    const ekf_scalar_t t25 = ekf_mul(dt, t24);
+    const ekf_scalar_t t26 = ekf_mul(r, sph);
+    const ekf_scalar_t t27 = ekf_mul(t23, t26);
+    const ekf_scalar_t t28 = ekf_mul(dt, t27);
+    const ekf_scalar_t t29 = ekf_mul(sph, t23);
+    const ekf_scalar_t t30 = ekf_mul(cph, dt);
+    const ekf_scalar_t t31 = ekf_mul(t10, t30);
+    const ekf_scalar_t t32 = ekf_mul(dt, sph);
+    const ekf_scalar_t t33 = ekf_mul(t32, t6);
+    const ekf_scalar_t t34 = ekf_mul(secthm, sthm);
+    const ekf_scalar_t t35 = ekf_mul(cph, t23);
+    const ekf_scalar_t t36 = ekf_mul(dt, t35);
+    const ekf_scalar_t t37 = ekf_mul(dt, t29);
+    const ekf_scalar_t t38 = ekf_mul(t34, t37);
+    const ekf_scalar_t t39 = ekf_mul(ekf_mul(secth, secth), ekf_mul(sth, sth));
+    const ekf_scalar_t t40 = ekf_mul(t30, t7);
+    const ekf_scalar_t t41 = ekf_mul(t13, t32);
+    const ekf_scalar_t t42 = ekf_mul(t22, t7);
+    const ekf_scalar_t t43 = ekf_mul(dt, t42);
+    const ekf_scalar_t t44 = ekf_mul(t26, t6);
+    const ekf_scalar_t t45 = ekf_mul(dt, t44);
+    const ekf_scalar_t t46 = ekf_mul(r, r);
+    const ekf_scalar_t t47 = ekf_mul(cph, t46);
+    const ekf_scalar_t t48 = ekf_mul(t3, t47);
+    const ekf_scalar_t t49 = ekf_mul(q, q);
+    const ekf_scalar_t t50 = ekf_mul(sph, t49);
+    const ekf_scalar_t t51 = ekf_mul(t0, t50);
+    const ekf_scalar_t t52 = ekf_mul(t25, t7);
+    const ekf_scalar_t t53 = ekf_mul(t28, t6);
+    const ekf_scalar_t t54 = ekf_mul(cph, r);
+    const ekf_scalar_t t55 = ekf_mul(q, sph);
+    const ekf_scalar_t t56 = ekf_mul(t0, t49);
+    const ekf_scalar_t t57 = ekf_mul(t35, t56);
+    const ekf_scalar_t t58 = ekf_mul(t3, t46);
+    const ekf_scalar_t t59 = ekf_mul(t29, t58);
+    const ekf_scalar_t t60 = ekf_mul(t54, t6);
+    const ekf_scalar_t t61 = ekf_mul(dt, t60);
+    const ekf_scalar_t t62 = ekf_mul(t23, t61);
+    const ekf_scalar_t t63 = ekf_mul(t55, t7);
+    const ekf_scalar_t t64 = ekf_mul(dt, t63);
+    const ekf_scalar_t t65 = ekf_mul(t23, t64);
+    const ekf_scalar_t t66 = ekf_add(t54, t55);
+    const ekf_scalar_t t67 = ekf_mul(cphm, t46);
+    const ekf_scalar_t t68 = ekf_mul(cph, t67);
+    const ekf_scalar_t t69 = ekf_mul(t17, t68);
+    const ekf_scalar_t t70 = ekf_mul(sphm, t49);
+    const ekf_scalar_t t71 = ekf_mul(sph, t70);
+    const ekf_scalar_t t72 = ekf_mul(t17, t71);
+    const ekf_scalar_t t73 = ekf_mul(t17, t42);
+    const ekf_scalar_t t74 = ekf_mul(t17, t44);
+    const ekf_scalar_t t75 = ekf_mul(t17, t34);
+    const ekf_scalar_t t76 = ekf_mul(t24, t7);
+    const ekf_scalar_t t77 = ekf_mul(t27, t6);
+    const ekf_scalar_t t78 = ekf_add(ekf_add(ekf_add(ekf_add(EKF_C(1), t69), t72), t73), t74);
+    const ekf_scalar_t t79 = ekf_mul(cph, t70);
+    const ekf_scalar_t t80 = ekf_mul(sph, t67);
+    const ekf_scalar_t t81 = ekf_sub(t60, t63);
+    const ekf_scalar_t t82 = ekf_sub(ekf_sub(ekf_sub(ekf_add(ekf_add(ekf_add(t79, t81), ekf_mul(t12, t60)), ekf_mul(t12, t79)), t80), ekf_mul(t12, t63)), ekf_mul(t12, t80));
+    const ekf_scalar_t t83 = ekf_neg(cph);
+    const ekf_scalar_t t84 = ekf_mul(t30, t34);
+    const ekf_scalar_t t85 = ekf_mul(t32, t34);
+    const ekf_scalar_t t86 = ekf_mul(cph, t49);
+    const ekf_scalar_t t87 = ekf_mul(sph, t46);
+    const ekf_scalar_t t88 = ekf_mul(t0, t86);
+    const ekf_scalar_t t89 = ekf_mul(t3, t87);
+    const ekf_scalar_t t90 = ekf_mul(secth, t17);
     d[0] = dt;
-    d[1] = dt;
-    d[2] = dt;
-    d[3] = EKF_C(1);
-    d[4] = ekf_mul(sth, t0);
-    d[5] = ekf_mul(sth, t1);
-    d[6] = ekf_mul(sth, t3);
-    d[7] = t9;
-    d[8] = ekf_sub(ekf_sub(ekf_mul(ekf_mul(ekf_mul(ekf_mul(cph, dt), q), secth), sth), EKF_C(1)), ekf_mul(ekf_mul(ekf_mul(dt, secth), sth), t2));
-    d[9] = ekf_mul(dt, t9);
-    d[10] = cph;
-    d[11] = ekf_neg(sph);
-    d[12] = ekf_neg(t8);
-    d[13] = ekf_neg(t10);
-    d[14] = ekf_neg(EKF_C(1));
-    d[15] = t0;
-    d[16] = t1;
-    d[17] = t3;
-    d[18] = ekf_mul(t11, t8);
-    d[19] = ekf_mul(dt, t3);
-    d[20] = ekf_mul(t10, t11);
-    d[21] = ekf_neg(EKF_C(1));
+    d[1] = t2;
+    d[2] = t5;
+    d[3] = ekf_mul(sthm, t9);
+    d[4] = ekf_mul(dt, t15);
+    d[5] = ekf_mul(sthm, t18);
+    d[6] = ekf_mul(t15, t17);
+    d[7] = t3;
+    d[8] = ekf_neg(t0);
+    d[9] = ekf_neg(t19);
+    d[10] = ekf_neg(t20);
+    d[11] = t1;
+    d[12] = t4;
+    d[13] = t9;
+    d[14] = ekf_mul(t19, t21);
+    d[15] = t18;
+    d[16] = ekf_mul(t20, t21);
+    d[17] = ekf_sub(ekf_add(EKF_C(1), t25), t28);
+    d[18] = ekf_sub(ekf_add(ekf_add(ekf_add(ekf_add(ekf_add(t29, t31), t33), ekf_mul(t31, t39)), ekf_mul(t33, t39)), ekf_mul(ekf_mul(t13, t34), t36)), ekf_mul(t38, t7));
+    d[19] = ekf_sub(ekf_sub(ekf_sub(ekf_sub(ekf_sub(ekf_add(ekf_mul(ekf_mul(cph, secth), sth), ekf_mul(ekf_mul(ekf_mul(ekf_mul(ekf_mul(ekf_mul(ekf_mul(cph, cphm), dt), q), secth), secthm), sth), sthm)), t40), t41), ekf_mul(t10, t38)), ekf_mul(t39, t40)), ekf_mul(t39, t41));
+    d[20] = ekf_sub(ekf_sub(ekf_sub(ekf_sub(ekf_sub(ekf_sub(ekf_sub(ekf_sub(ekf_sub(ekf_sub(ekf_sub(ekf_add(ekf_add(ekf_mul(ekf_mul(ekf_mul(cph, q), secth), sth), ekf_mul(ekf_mul(ekf_mul(ekf_mul(ekf_mul(ekf_mul(ekf_mul(cph, cphm), dt), secth), secthm), sth), sthm), t49)), ekf_mul(ekf_mul(ekf_mul(ekf_mul(ekf_mul(ekf_mul(ekf_mul(dt, secth), secthm), sph), sphm), sth), sthm), t46)), t27), t43), t45), t48), t51), ekf_mul(t34, t52)), ekf_mul(t34, t53)), ekf_mul(t39, t43)), ekf_mul(t39, t45)), ekf_mul(t39, t48)), ekf_mul(t39, t51));
+    d[21] = ekf_sub(ekf_sub(ekf_sub(ekf_sub(ekf_add(ekf_add(ekf_add(ekf_add(ekf_add(ekf_add(t57, t62), t66), ekf_mul(t12, t57)), ekf_mul(t12, t62)), ekf_mul(t39, t54)), ekf_mul(t39, t55)), t59), t65), ekf_mul(t12, t59)), ekf_mul(t12, t65));
+    d[22] = ekf_sub(ekf_sub(ekf_sub(ekf_sub(ekf_sub(ekf_sub(ekf_sub(ekf_add(ekf_mul(ekf_mul(ekf_mul(ekf_mul(ekf_mul(ekf_mul(ekf_mul(ekf_mul(EKF_C(0.5), cph), cphm), secth), secthm), sth), sthm), t16), t49), ekf_mul(ekf_mul(ekf_mul(ekf_mul(ekf_mul(ekf_mul(ekf_mul(ekf_mul(EKF_C(0.5), secth), secthm), sph), sphm), sth), sthm), t16), t46)), t78), ekf_mul(t39, t69)), ekf_mul(t39, t72)), ekf_mul(t39, t73)), ekf_mul(t39, t74)), ekf_mul(t75, t76)), ekf_mul(t75, t77));
+    d[23] = ekf_mul(ekf_mul(t17, t23), t82);
+    d[24] = ekf_neg(ekf_mul(dt, t66));
+    d[25] = ekf_neg(ekf_add(ekf_add(t83, ekf_mul(t34, t40)), ekf_mul(t34, t41)));
+    d[26] = ekf_neg(ekf_add(ekf_add(sph, ekf_mul(t31, t34)), ekf_mul(t33, t34)));
+    d[27] = ekf_sub(ekf_sub(ekf_sub(ekf_add(ekf_mul(ekf_mul(ekf_mul(ekf_mul(ekf_mul(cph, dt), secthm), sphm), sthm), t46), ekf_mul(ekf_mul(ekf_mul(ekf_mul(ekf_mul(ekf_mul(dt, q), r), secthm), sph), sphm), sthm)), t66), ekf_mul(t34, t61)), ekf_mul(t5, t50));
+    d[28] = ekf_neg(ekf_mul(dt, ekf_add(ekf_add(ekf_add(ekf_add(ekf_add(ekf_add(ekf_add(t42, t44), t68), t71), ekf_mul(t12, t42)), ekf_mul(t12, t44)), ekf_mul(t12, t68)), ekf_mul(t12, t71))));
+    d[29] = ekf_neg(ekf_mul(t75, ekf_sub(ekf_add(t81, ekf_mul(cphm, t50)), ekf_mul(sphm, t47))));
+    d[30] = ekf_neg(ekf_add(ekf_add(ekf_add(ekf_add(t78, ekf_mul(t12, t69)), ekf_mul(t12, t72)), ekf_mul(t12, t73)), ekf_mul(t12, t74)));
+    d[31] = ekf_mul(ekf_mul(dt, secth), ekf_sub(t22, t26));
+    d[32] = ekf_mul(secth, ekf_sub(ekf_add(ekf_add(ekf_add(sph, ekf_mul(t10, t36)), ekf_mul(t13, t84)), ekf_mul(t37, t6)), ekf_mul(t7, t85)));
+    d[33] = ekf_neg(ekf_mul(secth, ekf_sub(ekf_add(ekf_add(ekf_add(t83, ekf_mul(t10, t85)), ekf_mul(t13, t37)), ekf_mul(t36, t7)), ekf_mul(t6, t84))));
+    d[34] = ekf_neg(ekf_mul(secth, ekf_sub(ekf_sub(ekf_sub(ekf_add(ekf_add(ekf_add(ekf_add(ekf_add(ekf_add(t26, t52), t53), ekf_mul(t29, t56)), ekf_mul(t34, t43)), ekf_mul(t34, t45)), ekf_mul(t35, t58)), t22), ekf_mul(t2, t87)), ekf_mul(t5, t86))));
+    d[35] = ekf_mul(secth, ekf_sub(ekf_sub(ekf_sub(ekf_sub(ekf_add(ekf_add(ekf_add(ekf_add(ekf_add(t61, t88), ekf_mul(t12, t61)), ekf_mul(t12, t88)), ekf_mul(t23, t54)), ekf_mul(t23, t55)), t64), t89), ekf_mul(t12, t64)), ekf_mul(t12, t89)));
+    d[36] = ekf_neg(ekf_mul(t90, ekf_sub(ekf_sub(ekf_add(ekf_add(ekf_add(ekf_add(ekf_add(t76, t77), ekf_mul(t29, t70)), ekf_mul(t34, t42)), ekf_mul(t34, t44)), ekf_mul(t35, t67)), ekf_mul(ekf_mul(cphm, t34), t86)), ekf_mul(ekf_mul(sphm, t34), t87))));
+    d[37] = ekf_mul(t82, t90);
+    d[38] = ekf_neg(EKF_C(1));
 }
 
 void att_gen_noise_jacobian(const att_trig_t *t, ekf_scalar_t g[9])

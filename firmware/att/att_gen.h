@@ -13,10 +13,18 @@
 #include "att_defs.h"
 
 /* Number of structurally non-zero entries of D = F - I. */
-#define ATT_GEN_F_NNZ 22
+#define ATT_GEN_F_NNZ 39
 
 /* (row, column) of each entry of D, sorted by row: the pattern for ekf_cov_propagate. */
 extern const ekf_nz_t att_gen_f_pattern[ATT_GEN_F_NNZ];
+
+/*
+ * P <- F P F^T, F = I + D, d: the values of D in the order of att_gen_f_pattern.
+ * ekf_cov_propagate() unrolled for this pattern: the same operations in the same order
+ * (bit-identical result) without reading the pattern at run time. P must be exactly
+ * symmetric and stays so. d must be finite (the caller checks).
+ */
+void att_gen_cov_propagate(ekf_scalar_t P[ATT_N * ATT_N], const ekf_scalar_t d[ATT_GEN_F_NNZ]);
 
 /*
  * Euler-angle rates (rad/s) from body rates w = (p, q, r) (rad/s): W(phi, theta) w.
@@ -32,10 +40,10 @@ void att_gen_body_rates(const att_trig_t *t, const ekf_scalar_t e[3], ekf_scalar
 
 /*
  * Non-zero entries of D = F - I, F = df/dx, in the order of att_gen_f_pattern.
- * x: state before the step; dt: step (s); t: trigonometry of the advanced angles
- * (phi + dt phid, theta + dt thetad).
+ * x: state before the step; dt: step (s); tm: trigonometry of the midpoint angles
+ * (phi + dt/2 phid, theta + dt/2 thetad); t: of the advanced angles.
  */
-void att_gen_transition_jacobian(const att_trig_t *t, const ekf_scalar_t x[ATT_N], ekf_scalar_t dt, ekf_scalar_t d[ATT_GEN_F_NNZ]);
+void att_gen_transition_jacobian(const att_trig_t *tm, const att_trig_t *t, const ekf_scalar_t x[ATT_N], ekf_scalar_t dt, ekf_scalar_t d[ATT_GEN_F_NNZ]);
 
 /*
  * Euler-rate block (rows PHID..PSID) of G = df/dw, row-major 3x3; the body-rate

@@ -27,16 +27,25 @@ int att_trig(ekf_scalar_t phi, ekf_scalar_t theta, ekf_scalar_t theta_limit, att
 }
 
 void att_model_transition(const ekf_scalar_t x[ATT_N], const ekf_scalar_t w[3], ekf_scalar_t dt,
-                          ekf_scalar_t theta_limit, ekf_scalar_t xn[ATT_N], att_trig_t *tn)
+                          ekf_scalar_t theta_limit, ekf_scalar_t xn[ATT_N], att_trig_t *tm,
+                          att_trig_t *tn)
 {
-    att_trig_t t;
+    const ekf_scalar_t half_dt = ekf_mul(EKF_C(0.5), dt);
+    att_trig_t tmid, t;
+    ekf_scalar_t rates[3];
     int i;
+    (void)att_trig(ekf_mac(x[ATT_PHI], half_dt, x[ATT_PHID]), ekf_mac(x[ATT_THETA], half_dt, x[ATT_THETAD]),
+                   theta_limit, &tmid);
+    att_gen_euler_rates(&tmid, &x[ATT_P], rates);
     for (i = 0; i < 3; ++i) {
         xn[ATT_P + i] = (w != NULL) ? ekf_add(x[ATT_P + i], w[i]) : x[ATT_P + i];
-        xn[ATT_PHI + i] = ekf_mac(x[ATT_PHI + i], dt, x[ATT_PHID + i]);
+        xn[ATT_PHI + i] = ekf_mac(x[ATT_PHI + i], dt, rates[i]);
     }
     (void)att_trig(xn[ATT_PHI], xn[ATT_THETA], theta_limit, &t);
     att_gen_euler_rates(&t, &xn[ATT_P], &xn[ATT_PHID]);
+    if (tm != NULL) {
+        *tm = tmid;
+    }
     if (tn != NULL) {
         *tn = t;
     }

@@ -19,13 +19,15 @@ int att_trig(ekf_scalar_t phi, ekf_scalar_t theta, ekf_scalar_t theta_limit, att
 
 /*
  * Transition x+ = f(x, w, dt) (docs/derivation.md, "Transition"):
- *   omega+ = omega + w;  Theta+ = Theta + dt Thetadot;  Thetadot+ = W(Theta+) omega+.
- * w: body-rate increment over the step (rad/s), NULL for zero. tn (may be NULL) receives
- * the trigonometry of the advanced angles, which the Jacobian needs too. xn must not
- * alias x. Angles are returned unnormalised (see att_model_normalise).
+ *   omega+ = omega + w;  Theta_m = Theta + dt/2 Thetadot;
+ *   Theta+ = Theta + dt W(Theta_m) omega;  Thetadot+ = W(Theta+) omega+.
+ * w: body-rate increment over the step (rad/s), NULL for zero. tm and tn (may be NULL)
+ * receive the trigonometry of the midpoint and of the advanced angles, which the Jacobian
+ * needs too. xn must not alias x. Angles are returned unnormalised (see att_model_normalise).
  */
 void att_model_transition(const ekf_scalar_t x[ATT_N], const ekf_scalar_t w[3], ekf_scalar_t dt,
-                          ekf_scalar_t theta_limit, ekf_scalar_t xn[ATT_N], att_trig_t *tn);
+                          ekf_scalar_t theta_limit, ekf_scalar_t xn[ATT_N], att_trig_t *tm,
+                          att_trig_t *tn);
 
 /*
  * Brings the Euler triple back to phi, psi in [-pi, pi), theta in [-pi/2, pi/2]. A pitch

@@ -27,32 +27,35 @@ const char *ekf_status_str(ekf_status_t status)
 
 int ekf_all_finite(const ekf_scalar_t *v, uint16_t len)
 {
-    uint16_t i;
+    ekf_scalar_t acc = EKF_C(0);
+    int i;
     for (i = 0; i < len; ++i) {
-        if (!ekf_isfinite(v[i])) {
-            return 0;
-        }
+        acc = ekf_finite_acc(acc, v[i]);
     }
-    return 1;
+    return (acc == EKF_C(0)) ? 1 : 0;
 }
 
-/* Index of the first pattern entry of each distinct row, validated. Returns the number
- * of distinct rows, or -1 if the pattern is unsorted or out of range. */
-static int pattern_rows(const ekf_nz_t *pattern, uint16_t nnz, uint8_t n)
+/* Set of rows of D, one bit per row, in words of 32 bits (any EKF_MAX_STATES). */
+#define EKF_MASK_WORDS ((EKF_MAX_STATES + 31) / 32)
+
+/* Start index in pattern of each distinct row (starts[rows] = nnz), validated. Returns the
+ * number of distinct rows, or -1 if the pattern is unsorted or out of range. */
+static int pattern_rows(const ekf_nz_t *pattern, int nnz, int n, uint16_t *starts)
 {
     int rows = 0;
-    uint16_t k;
+    int k;
     for (k = 0; k < nnz; ++k) {
         if (pattern[k].row >= n || pattern[k].col >= n) {
             return -1;
         }
-        if (k == 0 || pattern[k].row != pattern[k - 1u].row) {
-            if (k > 0 && pattern[k].row < pattern[k - 1u].row) {
+        if (k == 0 || pattern[k].row != pattern[k - 1].row) {
+            if (k > 0 && pattern[k].row < pattern[k - 1].row) {
                 return -1;
             }
-            ++rows;
+            starts[rows++] = (uint16_t)k;
         }
     }
+    starts[rows] = (uint16_t)nnz;
     return rows;
 }
 
@@ -60,19 +63,19 @@ ekf_status_t ekf_cov_propagate(ekf_scalar_t *P, uint8_t n, const ekf_nz_t *patte
                                const ekf_scalar_t *d, uint16_t nnz, ekf_scalar_t *work,
                                uint16_t work_len)
 {
-    int rows;
-    uint16_t k, k0, a;
-    uint8_t j;
-    uint32_t in_m = 0u; /* bit i set: row i of F differs from the identity */
+    uint16_t starts[EKF_MAX_STATES + 1]; /* first pattern entry of each row of D */
+    uint32_t in_m[EKF_MASK_WORDS] = {0}; /* bit i set: row i of F differs from the identity */
+    const int nn = n;
+    int rows, a, b, j, k;
 
     if (P == NULL || (nnz > 0 && (pattern == NULL || d == NULL || work == NULL))) {
         return EKF_ERR_NULL;
     }
-    if (n == 0 || n > EKF_MAX_STATES) {
+    if (nn == 0 || nn > EKF_MAX_STATES) {
         return EKF_ERR_DIMENSION;
     }
-    rows = pattern_rows(pattern, nnz, n);
-    if (rows < 0 || (uint32_t)rows * n > work_len) {
+    rows = pattern_rows(pattern, nnz, nn, starts);
+    if (rows < 0 || (uint32_t)rows * (uint32_t)nn > work_len) {
         return EKF_ERR_DIMENSION;
     }
     if (!ekf_all_finite(d, nnz)) {
@@ -81,17 +84,41 @@ ekf_status_t ekf_cov_propagate(ekf_scalar_t *P, uint8_t n, const ekf_nz_t *patte
 
     /* Step 1: the rows of A = F P = P + D P that differ from P, into work (one row of
      * work per distinct row of D, in pattern order). P itself is not touched yet, so
-     * every D P term reads the old P. */
-    for (k = 0, a = 0; k < nnz; ++a) {
-        ekf_scalar_t *wrow = &work[(uint32_t)a * n];
-        const uint8_t row = pattern[k].row;
-        for (j = 0; j < n; ++j) {
-            wrow[j] = P[(uint32_t)row * n + j];
+     * every D P term reads the old P. Row i of D P is a combination of rows of P (the
+     * columns of D's row i): A_i = P_i + d_k1 P_c1 + d_k2 P_c2 + ..., summed in pattern
+     * order, two terms per pass over the row. */
+    for (a = 0; a < rows; ++a) {
+        ekf_scalar_t *w = &work[a * nn];
+        const ekf_scalar_t *pr = &P[pattern[starts[a]].row * nn];
+        const int kend = starts[a + 1];
+        k = starts[a];
+        if (kend - k >= 2) {
+            const ekf_scalar_t *p0 = &P[pattern[k].col * nn], *p1 = &P[pattern[k + 1].col * nn];
+            const ekf_scalar_t d0 = d[k], d1 = d[k + 1];
+            for (j = 0; j < nn; ++j) {
+                w[j] = ekf_mac(ekf_mac(pr[j], d0, p0[j]), d1, p1[j]);
+            }
+            k += 2;
+        } else {
+            const ekf_scalar_t *p0 = &P[pattern[k].col * nn];
+            const ekf_scalar_t d0 = d[k];
+            for (j = 0; j < nn; ++j) {
+                w[j] = ekf_mac(pr[j], d0, p0[j]);
+            }
+            k += 1;
         }
-        for (; k < nnz && pattern[k].row == row; ++k) {
-            const ekf_scalar_t *prow = &P[(uint32_t)pattern[k].col * n];
-            for (j = 0; j < n; ++j) {
-                wrow[j] = ekf_mac(wrow[j], d[k], prow[j]);
+        for (; k + 1 < kend; k += 2) {
+            const ekf_scalar_t *p0 = &P[pattern[k].col * nn], *p1 = &P[pattern[k + 1].col * nn];
+            const ekf_scalar_t d0 = d[k], d1 = d[k + 1];
+            for (j = 0; j < nn; ++j) {
+                w[j] = ekf_mac(ekf_mac(w[j], d0, p0[j]), d1, p1[j]);
+            }
+        }
+        if (k < kend) {
+            const ekf_scalar_t *p0 = &P[pattern[k].col * nn];
+            const ekf_scalar_t d0 = d[k];
+            for (j = 0; j < nn; ++j) {
+                w[j] = ekf_mac(w[j], d0, p0[j]);
             }
         }
     }
@@ -105,29 +132,28 @@ ekf_status_t ekf_cov_propagate(ekf_scalar_t *P, uint8_t n, const ekf_nz_t *patte
      * Each (i, j) pair with both in M is computed once (j's group not before i's) and
      * written to both triangles, so P stays exactly symmetric. Only work is read here. */
     for (k = 0; k < nnz; ++k) {
-        in_m |= (uint32_t)1u << pattern[k].row;
+        in_m[pattern[k].row >> 5] |= (uint32_t)1u << (pattern[k].row & 31u);
     }
-    for (k0 = 0, a = 0; k0 < nnz; ++a) {
-        const uint8_t ri = pattern[k0].row;
-        const ekf_scalar_t *arow = &work[(uint32_t)a * n];
-        uint16_t kj = k0;
-        for (j = 0; j < n; ++j) {
-            if ((in_m & ((uint32_t)1u << j)) == 0u) {
-                P[(uint32_t)ri * n + j] = arow[j];
-                P[(uint32_t)j * n + ri] = arow[j];
+    for (a = 0; a < rows; ++a) {
+        const int ri = pattern[starts[a]].row;
+        const ekf_scalar_t *arow = &work[a * nn];
+        ekf_scalar_t *prow = &P[ri * nn];
+        ekf_scalar_t *pcol = &P[ri];
+        for (j = 0; j < nn; ++j, pcol += nn) {
+            if ((in_m[j >> 5] & ((uint32_t)1u << (j & 31))) == 0u) {
+                prow[j] = arow[j];
+                *pcol = arow[j];
             }
         }
-        while (kj < nnz) {
-            const uint8_t rj = pattern[kj].row;
+        for (b = a; b < rows; ++b) {
+            const int rj = pattern[starts[b]].row;
+            const int kend = starts[b + 1];
             ekf_scalar_t v = arow[rj];
-            for (; kj < nnz && pattern[kj].row == rj; ++kj) {
-                v = ekf_mac(v, d[kj], arow[pattern[kj].col]);
+            for (k = starts[b]; k < kend; ++k) {
+                v = ekf_mac(v, d[k], arow[pattern[k].col]);
             }
-            P[(uint32_t)ri * n + rj] = v;
-            P[(uint32_t)rj * n + ri] = v;
-        }
-        while (k0 < nnz && pattern[k0].row == ri) {
-            ++k0;
+            prow[rj] = v;
+            P[rj * nn + ri] = v;
         }
     }
     return EKF_OK;
@@ -140,38 +166,52 @@ ekf_status_t ekf_update_scalar(ekf_scalar_t *x, ekf_scalar_t *P, uint8_t n, cons
 {
     ekf_scalar_t b[EKF_MAX_STATES]; /* P H^T */
     ekf_scalar_t K[EKF_MAX_STATES]; /* gain */
-    ekf_scalar_t s, inv_s, hb;
-    uint8_t i, j, k;
+    ekf_scalar_t s, inv_s, hb, bad;
+    const uint8_t *hidx;
+    const ekf_scalar_t *hval;
+    const int nn = n;
+    int i, j, k, nh;
 
     if (x == NULL || P == NULL || h == NULL || (h->nnz > 0 && (h->idx == NULL || h->value == NULL))) {
         return EKF_ERR_NULL;
     }
-    if (n == 0 || n > EKF_MAX_STATES || h->nnz == 0 || h->nnz > n) {
+    nh = h->nnz;
+    hidx = h->idx;
+    hval = h->value;
+    if (nn == 0 || nn > EKF_MAX_STATES || nh == 0 || nh > nn) {
         return EKF_ERR_DIMENSION;
     }
-    for (k = 0; k < h->nnz; ++k) {
-        if (h->idx[k] >= n) {
+    for (k = 0; k < nh; ++k) {
+        if (hidx[k] >= nn) {
             return EKF_ERR_DIMENSION;
         }
     }
-    if (!ekf_isfinite(innovation) || !ekf_isfinite(r_var) || !ekf_all_finite(h->value, h->nnz)) {
+    if (!ekf_isfinite(innovation) || !ekf_isfinite(r_var) || !ekf_all_finite(hval, h->nnz)) {
         return EKF_ERR_NOT_FINITE;
     }
     if (!(r_var > EKF_C(0))) {
         return EKF_ERR_RANGE;
     }
 
-    /* b = P H^T (H sparse) and S = H b + R */
-    for (i = 0; i < n; ++i) {
-        ekf_scalar_t acc = EKF_C(0);
-        for (k = 0; k < h->nnz; ++k) {
-            acc = ekf_mac(acc, P[(uint32_t)i * n + h->idx[k]], h->value[k]);
+    /* b = P H^T = sum_k h_k (column idx_k of P); P is exactly symmetric, so that column is
+     * row idx_k, contiguous in memory. H has one or two non-zeros in the attitude model. */
+    {
+        const ekf_scalar_t *row = &P[hidx[0] * nn];
+        const ekf_scalar_t h0 = hval[0];
+        for (i = 0; i < nn; ++i) {
+            b[i] = ekf_mul(row[i], h0);
         }
-        b[i] = acc;
+        for (k = 1; k < nh; ++k) {
+            const ekf_scalar_t hk = hval[k];
+            row = &P[hidx[k] * nn];
+            for (i = 0; i < nn; ++i) {
+                b[i] = ekf_mac(b[i], row[i], hk);
+            }
+        }
     }
     hb = EKF_C(0);
-    for (k = 0; k < h->nnz; ++k) {
-        hb = ekf_mac(hb, h->value[k], b[h->idx[k]]);
+    for (k = 0; k < nh; ++k) {
+        hb = ekf_mac(hb, hval[k], b[hidx[k]]);
     }
     s = ekf_add(hb, r_var);
     if (!ekf_isfinite(s) || !(s >= r_var) || !(s > EKF_C(0))) {
@@ -184,7 +224,11 @@ ekf_status_t ekf_update_scalar(ekf_scalar_t *x, ekf_scalar_t *P, uint8_t n, cons
         info->test_ratio = EKF_C(0);
     }
     if (gate_sigma > EKF_C(0)) {
-        const ekf_scalar_t ratio = ekf_div(ekf_sq(innovation), ekf_mul(ekf_sq(gate_sigma), s));
+        const ekf_scalar_t nu2 = ekf_sq(innovation);
+        const ekf_scalar_t lim = ekf_mul(ekf_sq(gate_sigma), s);
+        /* a gate so small that gate^2 S underflows to 0 passes only a zero innovation
+         * (found by fuzzing: the ratio was a division by zero); 1e6 stands for "far out" */
+        const ekf_scalar_t ratio = (lim > EKF_C(0)) ? ekf_div(nu2, lim) : ((nu2 > EKF_C(0)) ? EKF_C(1e6) : EKF_C(0));
         if (info != NULL) {
             info->test_ratio = ratio;
         }
@@ -193,37 +237,37 @@ ekf_status_t ekf_update_scalar(ekf_scalar_t *x, ekf_scalar_t *P, uint8_t n, cons
         }
     }
 
+    /* Gain, and a check that the gain, the new state and the new variances are finite
+     * before anything is written, so that a refused update leaves x and P as they were. */
     inv_s = ekf_div(EKF_C(1), s);
-    for (i = 0; i < n; ++i) {
-        K[i] = ekf_mul(b[i], inv_s);
-        if (!ekf_isfinite(K[i]) || !ekf_isfinite(ekf_mac(x[i], K[i], innovation))) {
-            return EKF_ERR_NUMERIC;
-        }
+    bad = EKF_C(0);
+    for (i = 0; i < nn; ++i) {
+        const ekf_scalar_t ki = ekf_mul(b[i], inv_s);
+        K[i] = ki;
+        bad = ekf_finite_acc(bad, ekf_mac(x[i], ki, innovation));
+        bad = ekf_finite_acc(bad, ekf_mac(P[i * nn + i], ekf_neg(ki), b[i]));
     }
-    /* Joseph form (I - K H) P (I - K H)^T + K R K^T expanded for a scalar measurement:
-     *   P+_ij = P_ij - K_i b_j - b_i K_j + S K_i K_j = P_ij - K_i b_j + c_i K_j,
-     * exact for any gain K, and first-order insensitive to rounding in K (the property
-     * that makes the Joseph form robust); docs/derivation.md. Check the diagonal before
-     * writing anything, so that a refused update leaves P as it was.
-     * c_i = S K_i - b_i is zero in exact arithmetic; it carries the rounding of K. */
-    for (i = 0; i < n; ++i) {
-        const ekf_scalar_t ci = ekf_sub(ekf_mul(s, K[i]), b[i]);
-        const ekf_scalar_t pii = ekf_mac(ekf_sub(P[(uint32_t)i * n + i], ekf_mul(K[i], b[i])), ci, K[i]);
-        if (!ekf_isfinite(pii)) {
-            return EKF_ERR_NUMERIC;
-        }
+    if (!(bad == EKF_C(0))) {
+        return EKF_ERR_NUMERIC;
     }
-    for (i = 0; i < n; ++i) {
-        const ekf_scalar_t ci = ekf_sub(ekf_mul(s, K[i]), b[i]);
-        for (j = i; j < n; ++j) {
-            ekf_scalar_t v = P[(uint32_t)i * n + j];
-            v = ekf_sub(v, ekf_mul(K[i], b[j]));
-            v = ekf_mac(v, ci, K[j]);
-            if (i == j && v < var_floor) {
-                v = var_floor;
-            }
-            P[(uint32_t)i * n + j] = v;
-            P[(uint32_t)j * n + i] = v;
+    /* P+ = P - K b^T (= P - b b^T / S), docs/derivation.md "Covariance update". Computed
+     * on the upper triangle and mirrored, so P stays exactly symmetric; the diagonal is
+     * floored. This is the Joseph form (I - K H) P (I - K H)^T + K R K^T evaluated at the
+     * gain K = b / S the routine itself computes: the Joseph form's extra terms,
+     * -b K^T + S K K^T = (S K - b) K^T, vanish for that gain and would only add the
+     * rounding of K (below the rounding of P itself). The 10^6-step stress tests
+     * (tests/c/test_att_stress.c, float and double, host and Cortex-M4F) show it keeps P
+     * positive definite as the Joseph evaluation did (docs/performance.md). */
+    for (i = 0; i < nn; ++i) {
+        ekf_scalar_t *pi = &P[i * nn];
+        ekf_scalar_t *pc = &P[(i + 1) * nn + i];
+        const ekf_scalar_t nki = ekf_neg(K[i]);
+        ekf_scalar_t v = ekf_mac(pi[i], nki, b[i]);
+        pi[i] = (v < var_floor) ? var_floor : v;
+        for (j = i + 1; j < nn; ++j, pc += nn) {
+            v = ekf_mac(pi[j], nki, b[j]);
+            pi[j] = v;
+            *pc = v;
         }
         x[i] = ekf_mac(x[i], K[i], innovation);
     }
@@ -241,6 +285,17 @@ int ekf_cov_limit_variance(ekf_scalar_t *P, uint8_t n, uint8_t i, ekf_scalar_t m
     if (!(pii > max_var)) {
         return 0;
     }
+    if (!ekf_isfinite(pii)) {
+        /* overflowed (a saturated fixed-point value, docs/fixed_point.md): no scale
+         * exists; reset the state's variance to the bound, uncorrelated (a principal block
+         * plus a positive diagonal entry: P stays positive semi-definite) */
+        for (j = 0; j < n; ++j) {
+            P[(uint32_t)i * n + j] = EKF_C(0);
+            P[(uint32_t)j * n + i] = EKF_C(0);
+        }
+        P[(uint32_t)i * n + i] = max_var;
+        return 1;
+    }
     scale = ekf_sqrt(ekf_div(max_var, pii));
     for (j = 0; j < n; ++j) {
         P[(uint32_t)i * n + j] = ekf_mul(P[(uint32_t)i * n + j], scale);
@@ -253,25 +308,33 @@ int ekf_cov_limit_variance(ekf_scalar_t *P, uint8_t n, uint8_t i, ekf_scalar_t m
 int ekf_cov_is_pd(const ekf_scalar_t *P, uint8_t n, ekf_scalar_t rel_margin, ekf_scalar_t *work)
 {
     /* LDL^T, row by row. work holds the packed lower triangle: row j starts at j(j+1)/2;
-     * its off-diagonal entries are L_jk and its diagonal entry is the pivot d_j. */
-    uint16_t j, k, m;
-    if (P == NULL || work == NULL || n == 0 || n > EKF_MAX_STATES) {
+     * its off-diagonal entries are L_jk and its diagonal entry is the pivot d_j. While
+     * row j is formed its entries hold w_jk = L_jk d_k:
+     *   w_jk = P_jk - sum_{m<k} w_jm L_km,  L_jk = w_jk / d_k,  d_j = P_jj - sum_k w_jk L_jk,
+     * n^3/6 multiply-adds, no product of three factors. */
+    const int nn = n;
+    int j, k, m;
+    ekf_scalar_t *lj;
+    if (P == NULL || work == NULL || nn == 0 || nn > EKF_MAX_STATES) {
         return 0;
     }
-    for (j = 0; j < n; ++j) {
-        ekf_scalar_t *lj = &work[(uint32_t)j * (j + 1u) / 2u];
-        ekf_scalar_t dj = P[(uint32_t)j * n + j];
-        for (k = 0; k < j; ++k) {
-            const ekf_scalar_t *lk = &work[(uint32_t)k * (k + 1u) / 2u];
-            ekf_scalar_t v = P[(uint32_t)j * n + k];
+    for (j = 0, lj = work; j < nn; lj += j + 1, ++j) {
+        const ekf_scalar_t *pj = &P[j * nn];
+        const ekf_scalar_t *lk;
+        ekf_scalar_t dj = pj[j];
+        for (k = 0, lk = work; k < j; lk += k + 1, ++k) {
+            ekf_scalar_t v = pj[k];
             for (m = 0; m < k; ++m) {
-                /* lk[k] is d_k, lk[m] is L_km, lj[m] is L_jm, work row m's diagonal is d_m */
-                v = ekf_sub(v, ekf_mul(ekf_mul(lj[m], lk[m]), work[(uint32_t)m * (m + 1u) / 2u + m]));
+                v = ekf_mac(v, ekf_neg(lj[m]), lk[m]);
             }
-            lj[k] = ekf_div(v, lk[k]);
-            dj = ekf_sub(dj, ekf_mul(ekf_mul(lj[k], lj[k]), lk[k]));
+            lj[k] = v;
         }
-        if (!ekf_isfinite(dj) || !(dj > EKF_C(0)) || !(dj >= ekf_mul(rel_margin, P[(uint32_t)j * n + j]))) {
+        for (k = 0, lk = work; k < j; lk += k + 1, ++k) {
+            const ekf_scalar_t l = ekf_div(lj[k], lk[k]); /* lk[k] is d_k */
+            dj = ekf_mac(dj, ekf_neg(l), lj[k]);
+            lj[k] = l;
+        }
+        if (!ekf_isfinite(dj) || !(dj > EKF_C(0)) || !(dj >= ekf_mul(rel_margin, pj[j]))) {
             return 0;
         }
         lj[j] = dj;

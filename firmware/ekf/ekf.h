@@ -10,9 +10,11 @@
  *     the noise variance R -> ekf_update_scalar(). Vector measurements are fused one
  *     component at a time (sequential scalar updates), so no matrix is ever inverted.
  *
- * Covariance update: Joseph form, evaluated in O(n^2) for a scalar measurement
- * (docs/derivation.md, "Covariance update"), symmetric by construction, with a floor on
- * the diagonal. Innovation gate: chi-square with one degree of freedom per scalar.
+ * Covariance update: P - K b^T (b = P H^T, K = b / S: the Joseph form at the optimal gain),
+ * O(n^2) for a scalar measurement (docs/derivation.md, "Covariance update"), symmetric by
+ * construction, with a floor on the diagonal; its robustness against the Joseph evaluation
+ * is measured in docs/performance.md. Innovation gate: chi-square with one degree of
+ * freedom per scalar.
  *
  * No allocation, no recursion, no VLAs; n <= EKF_MAX_STATES.
  */
@@ -70,7 +72,8 @@ typedef struct {
  * P <- F P F^T with F = I + D.
  *
  * pattern[k] is the (row, col) of D's k-th non-zero value d[k]; pattern must be sorted by
- * row (entries of one row contiguous). Only rows of F that differ from the identity are
+ * row (entries of one row contiguous); any n <= EKF_MAX_STATES (the set of modified rows is
+ * a bit mask of EKF_MAX_STATES bits). Only rows of F that differ from the identity are
  * touched, so the cost is O(r n + nnz n + r * nnz) for r such rows: linear in n when the
  * model's F is identity outside a small block (EKF-SLAM's static landmarks).
  *
@@ -84,10 +87,13 @@ ekf_status_t ekf_cov_propagate(ekf_scalar_t *P, uint8_t n, const ekf_nz_t *patte
                                uint16_t work_len);
 
 /*
- * Sequential scalar measurement update, Joseph form.
+ * Sequential scalar measurement update.
  *
- *   S = H P H^T + r_var;  K = P H^T / S;  x += K innovation;
- *   P <- (I - K H) P (I - K H)^T + K r_var K^T, then P_ii >= var_floor.
+ *   b = P H^T;  S = H b + r_var;  K = b / S;  x += K innovation;
+ *   P <- P - K b^T (upper triangle, mirrored), then P_ii >= var_floor.
+ * That is the Joseph form (I - K H) P (I - K H)^T + K r_var K^T at this gain, whose extra
+ * terms (S K - b) K^T vanish (docs/derivation.md, "Covariance update"). P must be exactly
+ * symmetric (column idx of P is read as row idx).
  *
  * gate_sigma > 0 enables the chi-square test innovation^2 <= gate_sigma^2 S (one degree
  * of freedom: gate_sigma 3 keeps 99.73 % of consistent innovations); a failed test
@@ -127,7 +133,7 @@ int ekf_cov_is_pd(const ekf_scalar_t *P, uint8_t n, ekf_scalar_t rel_margin, ekf
  * correlation coefficients by 1 / (1 + lambda).
  * Returns the number of repair rounds: 0 if P was already positive definite.
  * A model calls it where rounding can break definiteness (docs/derivation.md,
- * "Covariance bounds and definiteness").
+ * "Covariance bounds").
  */
 int ekf_cov_ensure_pd(ekf_scalar_t *P, uint8_t n, ekf_scalar_t rel_margin, ekf_scalar_t floor,
                       ekf_scalar_t *work);

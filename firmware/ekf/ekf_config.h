@@ -8,6 +8,9 @@
  * Scalar type (exactly one; default EKF_SCALAR_FLOAT):
  *   EKF_SCALAR_FLOAT   32-bit IEEE float. The default: what a Cortex-M4F runs natively.
  *   EKF_SCALAR_DOUBLE  64-bit IEEE double. The reference build used by the Jacobian tests.
+ *   EKF_SCALAR_FIXED   signed Q-format fixed point in 64 bits (ekf_fixed.h; Q29.34 unless
+ *                      EKF_FX_FRAC says otherwise), for cores without an FPU
+ *                      (docs/fixed_point.md). Needs ekf_fixed.c in the library.
  *
  * Model code never names float or double: it uses ekf_scalar_t and the operations of
  * ekf_scalar.h, so that another number representation (a Q-format fixed-point type)
@@ -16,22 +19,22 @@
 #ifndef EKF_CONFIG_H
 #define EKF_CONFIG_H
 
-#if defined(EKF_SCALAR_FLOAT) + defined(EKF_SCALAR_DOUBLE) > 1
-#error "ekf_config.h: define at most one of EKF_SCALAR_FLOAT, EKF_SCALAR_DOUBLE"
+#if defined(EKF_SCALAR_FLOAT) + defined(EKF_SCALAR_DOUBLE) + defined(EKF_SCALAR_FIXED) > 1
+#error "ekf_config.h: define at most one of EKF_SCALAR_FLOAT, EKF_SCALAR_DOUBLE, EKF_SCALAR_FIXED"
 #endif
 
-#if !defined(EKF_SCALAR_DOUBLE) && !defined(EKF_SCALAR_FLOAT)
+#if !defined(EKF_SCALAR_DOUBLE) && !defined(EKF_SCALAR_FLOAT) && !defined(EKF_SCALAR_FIXED)
 #define EKF_SCALAR_FLOAT 1
 #endif
 
 /* Largest state dimension any generic routine must handle. Sizes two scratch vectors on
- * the stack of ekf_update_scalar(); the models' own arrays are sized by their own
- * constants. At most 32 (ekf_cov_propagate keeps the set of modified rows in 32 bits). */
+ * the stack of ekf_update_scalar() and one index table of ekf_cov_propagate(); the models'
+ * own arrays are sized by their own constants. At most 255 (dimensions are uint8_t). */
 #ifndef EKF_MAX_STATES
 #define EKF_MAX_STATES 32
 #endif
-#if EKF_MAX_STATES > 32 || EKF_MAX_STATES < 1
-#error "EKF_MAX_STATES must be in 1..32"
+#if EKF_MAX_STATES > 255 || EKF_MAX_STATES < 1
+#error "EKF_MAX_STATES must be in 1..255"
 #endif
 
 #endif /* EKF_CONFIG_H */

@@ -10,12 +10,15 @@
  *   - trigonometry, square root, floor and finiteness go through the functions below: no other
  *     libm call appears in the library, and nothing is promoted to double by accident
  *     (the project builds with -Wdouble-promotion -Werror).
- * Conversion at the API boundary: ekf_from_float / ekf_to_float.
+ * Conversion at the API boundary: ekf_from_float / ekf_to_float (ekf_from_double /
+ * ekf_to_double for host code and tests; ekf_from_int for counts). Never cast a scalar
+ * with (float) or (ekf_scalar_t): in the fixed-point build that reinterprets the number.
  */
 #ifndef EKF_SCALAR_H
 #define EKF_SCALAR_H
 
 #include <math.h>
+#include <stdint.h>
 
 #include "ekf_config.h"
 
@@ -52,12 +55,57 @@ static inline ekf_scalar_t ekf_floor(ekf_scalar_t a) { return floorf(a); }
 static inline ekf_scalar_t ekf_from_float(float a) { return a; }
 static inline float ekf_to_float(ekf_scalar_t a) { return a; }
 
+#elif defined(EKF_SCALAR_FIXED)
+
+/* Signed Q-format fixed point in an int64_t (ekf_fixed.h, docs/fixed_point.md): Q29.34 by
+ * default (EKF_FX_FRAC). Comparisons and assignment stay native (a monotonic encoding);
+ * everything else goes through the saturating ekf_fx_* operations. */
+#include "ekf_fixed.h"
+
+typedef ekf_fx_t ekf_scalar_t;
+#define EKF_SCALAR_NAME "fixed"
+#define EKF_C(x) EKF_FX_C(x)
+#define EKF_SCALAR_EPS ((ekf_scalar_t)1) /* one LSB */
+
+static inline ekf_scalar_t ekf_sqrt(ekf_scalar_t a) { return ekf_fx_sqrt(a); }
+static inline ekf_scalar_t ekf_sin(ekf_scalar_t a) { return ekf_fx_sin(a); }
+static inline ekf_scalar_t ekf_cos(ekf_scalar_t a) { return ekf_fx_cos(a); }
+static inline ekf_scalar_t ekf_atan2(ekf_scalar_t y, ekf_scalar_t x) { return ekf_fx_atan2(y, x); }
+static inline ekf_scalar_t ekf_abs(ekf_scalar_t a) { return ekf_fx_abs(a); }
+static inline ekf_scalar_t ekf_floor(ekf_scalar_t a) { return ekf_fx_floor(a); }
+static inline ekf_scalar_t ekf_from_float(float a) { return ekf_fx_from_float(a); }
+static inline float ekf_to_float(ekf_scalar_t a) { return ekf_fx_to_float(a); }
+static inline ekf_scalar_t ekf_from_double(double a) { return ekf_fx_from_double(a); }
+static inline double ekf_to_double(ekf_scalar_t a) { return ekf_fx_to_double(a); }
+static inline ekf_scalar_t ekf_from_int(int32_t a) { return ekf_fx_from_int(a); }
+
+static inline ekf_scalar_t ekf_add(ekf_scalar_t a, ekf_scalar_t b) { return ekf_fx_add(a, b); }
+static inline ekf_scalar_t ekf_sub(ekf_scalar_t a, ekf_scalar_t b) { return ekf_fx_sub(a, b); }
+static inline ekf_scalar_t ekf_mul(ekf_scalar_t a, ekf_scalar_t b) { return ekf_fx_mul(a, b); }
+static inline ekf_scalar_t ekf_div(ekf_scalar_t a, ekf_scalar_t b) { return ekf_fx_div(a, b); }
+static inline ekf_scalar_t ekf_neg(ekf_scalar_t a) { return ekf_fx_neg(a); }
+static inline ekf_scalar_t ekf_mac(ekf_scalar_t c, ekf_scalar_t a, ekf_scalar_t b)
+{
+    return ekf_fx_add(c, ekf_fx_mul(a, b));
+}
+/* Saturated values are the infinities of the format: not finite. */
+static inline int ekf_isfinite(ekf_scalar_t a) { return ekf_fx_isfinite(a); }
+/* Branch-free finiteness of many values (see the IEEE version): acc stays zero while
+ * every value is finite, else it becomes non-zero. */
+static inline ekf_scalar_t ekf_finite_acc(ekf_scalar_t acc, ekf_scalar_t a) { return ekf_fx_isfinite(a) ? acc : (ekf_scalar_t)1; }
+/* Operations whose exact result was outside the format's range since start (or reset),
+ * program-wide (ekf_fixed.h). 0 in normal operation; docs/fixed_point.md. */
+static inline uint32_t ekf_scalar_saturations(void) { return ekf_fx_saturations(); }
+static inline void ekf_scalar_saturations_reset(void) { ekf_fx_saturations_reset(); }
+
 #else
 #error "ekf_scalar.h: no scalar type selected (see ekf_config.h)"
 #endif
 
+#if !defined(EKF_SCALAR_FIXED)
 /* Arithmetic. For IEEE types these are the plain operators; they exist so that a
- * representation with rescaling or saturation replaces them in one place. */
+ * representation with rescaling or saturation (EKF_SCALAR_FIXED above) replaces them in
+ * one place. */
 static inline ekf_scalar_t ekf_add(ekf_scalar_t a, ekf_scalar_t b) { return a + b; }
 static inline ekf_scalar_t ekf_sub(ekf_scalar_t a, ekf_scalar_t b) { return a - b; }
 static inline ekf_scalar_t ekf_mul(ekf_scalar_t a, ekf_scalar_t b) { return a * b; }
@@ -69,6 +117,19 @@ static inline ekf_scalar_t ekf_mac(ekf_scalar_t c, ekf_scalar_t a, ekf_scalar_t 
     return c + a * b;
 }
 static inline int ekf_isfinite(ekf_scalar_t a) { return isfinite(a) ? 1 : 0; }
+/* Branch-free finiteness of many values: acc starts at EKF_C(0) and stays exactly zero
+ * while every v is finite (v * 0 is +-0); inf * 0 and NaN * 0 make it NaN. One multiply-add
+ * per value (the covariance update checks 18 values per scalar measurement). */
+static inline ekf_scalar_t ekf_finite_acc(ekf_scalar_t acc, ekf_scalar_t a) { return acc + a * (ekf_scalar_t)0; }
+/* Conversions for host code and tests (the casts they replace, so results are unchanged),
+ * and of an integer count. */
+static inline ekf_scalar_t ekf_from_double(double a) { return (ekf_scalar_t)a; }
+static inline double ekf_to_double(ekf_scalar_t a) { return (double)a; }
+static inline ekf_scalar_t ekf_from_int(int32_t a) { return (ekf_scalar_t)a; }
+/* IEEE types overflow to inf, which the filter's finiteness checks catch; no counter. */
+static inline uint32_t ekf_scalar_saturations(void) { return 0u; }
+static inline void ekf_scalar_saturations_reset(void) {}
+#endif
 
 static inline ekf_scalar_t ekf_min(ekf_scalar_t a, ekf_scalar_t b) { return (a < b) ? a : b; }
 static inline ekf_scalar_t ekf_max(ekf_scalar_t a, ekf_scalar_t b) { return (a > b) ? a : b; }

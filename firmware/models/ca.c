@@ -121,7 +121,7 @@ ekf_status_t ca_init(ca_ekf_t *f, const ca_settings_t *s, uint8_t dims, const ek
                      const ekf_scalar_t *p0_diag)
 {
     ekf_status_t st;
-    uint8_t n, i;
+    uint8_t n, i, j;
 
     if (f == NULL || s == NULL || x0 == NULL || p0_diag == NULL) {
         return EKF_ERR_NULL;
@@ -148,8 +148,10 @@ ekf_status_t ca_init(ca_ekf_t *f, const ca_settings_t *s, uint8_t dims, const ek
     for (i = 0; i < CA_MAX_N; ++i) {
         f->x[i] = (i < n) ? x0[i] : EKF_C(0);
     }
-    for (i = 0; i < CA_MAX_N * CA_MAX_N; ++i) {
-        f->P[i] = EKF_C(0);
+    for (i = 0; i < CA_MAX_N; ++i) { /* row by row: a uint8_t index covers CA_MAX_N^2 > 255 too */
+        for (j = 0; j < CA_MAX_N; ++j) {
+            f->P[i * CA_MAX_N + j] = EKF_C(0);
+        }
     }
     for (i = 0; i < n; ++i) {
         f->P[i * n + i] = p0_diag[i];
@@ -169,7 +171,7 @@ ekf_status_t ca_predict(ca_ekf_t *f, ekf_scalar_t dt)
     ekf_nz_t pattern[CA_GEN_BLOCK_NNZ * CA_MAX_DIMS];
     ekf_scalar_t d[CA_GEN_BLOCK_NNZ * CA_MAX_DIMS];
     ekf_scalar_t work[2 * CA_MAX_DIMS * CA_MAX_N]; /* two rows per axis of F differ from I */
-    ekf_scalar_t xn[CA_MAX_N], g[CA_BLOCK];
+    ekf_scalar_t xn[CA_MAX_N] = {0}, g[CA_BLOCK]; /* zeroed: the analyser cannot see n <= CA_MAX_N */
     ekf_status_t st;
     uint8_t k, i, j;
     uint16_t nnz = 0;
@@ -230,7 +232,7 @@ ekf_status_t ca_update_position(ca_ekf_t *f, const ekf_scalar_t *z, ekf_innov_t 
     ekf_scalar_t x_save[CA_MAX_N], P_save[CA_MAX_N * CA_MAX_N];
     const ekf_scalar_t one = EKF_C(1);
     ekf_status_t result = EKF_OK;
-    uint8_t k;
+    uint8_t k, n;
     uint16_t i;
 
     if (f == NULL || z == NULL) {
@@ -243,11 +245,13 @@ ekf_status_t ca_update_position(ca_ekf_t *f, const ekf_scalar_t *z, ekf_innov_t 
         return reject(f, EKF_ERR_NOT_FINITE);
     }
     /* The axes are fused one after the other; keep a copy so that a numeric failure of a
-     * later axis can undo the earlier ones (errors leave the filter as it was). */
-    for (i = 0; i < f->n; ++i) {
+     * later axis can undo the earlier ones (errors leave the filter as it was). n: one
+     * copy of f->n, so that save and restore visibly cover the same entries. */
+    n = f->n;
+    for (i = 0; i < n; ++i) {
         x_save[i] = f->x[i];
     }
-    for (i = 0; i < (uint16_t)(f->n * f->n); ++i) {
+    for (i = 0; i < (uint16_t)(n * n); ++i) {
         P_save[i] = f->P[i];
     }
     for (k = 0; k < f->dims; ++k) {
@@ -260,10 +264,10 @@ ekf_status_t ca_update_position(ca_ekf_t *f, const ekf_scalar_t *z, ekf_innov_t 
             count(&f->gated);
             result = EKF_GATED;
         } else if (st != EKF_OK) {
-            for (i = 0; i < f->n; ++i) {
+            for (i = 0; i < n; ++i) {
                 f->x[i] = x_save[i];
             }
-            for (i = 0; i < (uint16_t)(f->n * f->n); ++i) {
+            for (i = 0; i < (uint16_t)(n * n); ++i) {
                 f->P[i] = P_save[i];
             }
             return reject(f, st);

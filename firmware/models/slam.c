@@ -314,6 +314,7 @@ static ekf_status_t add_landmark(slam_ekf_t *f, const slam_observation_t *obs, i
     const uint8_t n = f->n, n2 = (uint8_t)(f->n + 2u);
     ekf_scalar_t m[2], gx[6], gz[4], cross[2 * SLAM_MAX_N], pmm[4];
     const ekf_scalar_t r_var[2] = {f->settings.range_var, f->settings.bearing_var};
+    ekf_status_t st;
     int a, b, i, j, k;
 
     if (f->landmarks >= SLAM_MAX_LANDMARKS) {
@@ -322,7 +323,10 @@ static ekf_status_t add_landmark(slam_ekf_t *f, const slam_observation_t *obs, i
     if (obs->range < f->settings.min_range) {
         return EKF_ERR_SINGULAR;
     }
-    (void)slam_inverse_observation(f->x, obs->range, obs->bearing, m, gx, gz); /* inputs checked */
+    st = slam_inverse_observation(f->x, obs->range, obs->bearing, m, gx, gz);
+    if (st != EKF_OK) { /* inputs were checked; this keeps gx/gz from ever being used unset */
+        return st;
+    }
     for (a = 0; a < 2; ++a) {
         for (j = 0; j < n; ++j) {
             ekf_scalar_t acc = EKF_C(0);

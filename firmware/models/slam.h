@@ -43,7 +43,7 @@
 #include "ekf.h"
 #include "slam_gen.h"
 
-/* Landmark capacity. The generic core handles at most EKF_MAX_STATES (<= 32) states, so at
+/* Landmark capacity. The generic core handles at most EKF_MAX_STATES (<= 255) states, so at
  * most (EKF_MAX_STATES - 3) / 2 landmarks. Override with -DSLAM_MAX_LANDMARKS=k. */
 #ifndef SLAM_MAX_LANDMARKS
 #define SLAM_MAX_LANDMARKS ((EKF_MAX_STATES - 3) / 2)

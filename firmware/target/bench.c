@@ -224,9 +224,9 @@ int main(int argc, char **argv)
         ekf_scalar_t est[3];
         double ed[3];
         att_get_euler(&filter, est);
-        ed[0] = (double)est[0];
-        ed[1] = (double)est[1];
-        ed[2] = (double)est[2];
+        ed[0] = ekf_to_double(est[0]);
+        ed[1] = ekf_to_double(est[1]);
+        ed[2] = ekf_to_double(est[2]);
         ts_sim_euler(&sim, e);
         printf("fused gyro %lu accel %lu mag %lu skipped accel %lu mag %lu gated gyro %lu accel %lu mag %lu\n",
                (unsigned long)d->gyro_fused, (unsigned long)d->accel_fused, (unsigned long)d->mag_fused,

@@ -24,11 +24,11 @@ int main(void)
         return 1;
     }
     for (k = 0; k < 100; ++k) {
-        s.dt = fp_in[0];
+        s.dt = ekf_from_float(fp_in[0]);
         for (i = 0; i < 3; ++i) {
-            s.gyro[i] = fp_in[1 + i];
-            s.accel[i] = fp_in[4 + i];
-            s.mag[i] = fp_in[7 + i];
+            s.gyro[i] = ekf_from_float(fp_in[1 + i]);
+            s.accel[i] = ekf_from_float(fp_in[4 + i]);
+            s.mag[i] = ekf_from_float(fp_in[7 + i]);
         }
         s.valid = ATT_HAS_GYRO | ATT_HAS_ACCEL | ATT_HAS_MAG;
         (void)att_step(&f, &s, NULL);
@@ -37,11 +37,11 @@ int main(void)
     att_get_quaternion(&f, q);
     att_get_variances(&f, v);
     for (i = 0; i < 3; ++i) {
-        fp_out[i] = e[i];
-        fp_out[3 + i] = v[ATT_PHI + i];
+        fp_out[i] = ekf_to_float(e[i]);
+        fp_out[3 + i] = ekf_to_float(v[ATT_PHI + i]);
     }
     for (i = 0; i < 4; ++i) {
-        fp_out[6 + i] = q[i];
+        fp_out[6 + i] = ekf_to_float(q[i]);
     }
     fp_flags = att_flags(&f);
     return (att_flags(&f) & ATT_FLAG_ALIGNED) ? 0 : 1;

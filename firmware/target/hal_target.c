@@ -117,7 +117,7 @@ static int read_header(hal_target_t *t)
                 t->col[k] = i;
             }
         }
-        if (t->col[k] < 0 && k < COL_MAG) {
+        if (k < COL_MAG && t->col[k] < 0) {
             fail(t, "header lacks column", col_names[k]);
             return 0;
         }

@@ -53,7 +53,7 @@ void target_stack_paint(uintptr_t lo, uintptr_t hi)
     /* volatile: these words are below the stack pointer, which the compiler would
      * otherwise be entitled to consider dead memory */
     volatile uint32_t *p = (volatile uint32_t *)((lo + 3u) & ~(uintptr_t)3u);
-    volatile uint32_t *const end = (volatile uint32_t *)(hi & ~(uintptr_t)3u);
+    const volatile uint32_t *const end = (const volatile uint32_t *)(hi & ~(uintptr_t)3u);
     while (p < end) {
         *p++ = STACK_PAINT;
     }

@@ -29,16 +29,25 @@ static const setting_row_t k_settings[] = {
     SCALAR_ROW(gyro_noise, "rad/s", "gyro white noise, 1 sigma per sample"),
     SCALAR_ROW(gyro_gate, "sigma", "gyro innovation gate, 0 = off"),
     SCALAR_ROW(gyro_range, "rad/s", "gyro |component| above this is refused"),
+    SCALAR_ROW(rest.rest_gyro, "rad/s", "rate (and its deviation) below which the sensor may rest"),
+    SCALAR_ROW(rest.rest_accel, "m/s^2", "deviation of the accel from its low-passed value at rest"),
+    SCALAR_ROW(rest.rest_time, "s", "continuous rest before the gyro offset is learned"),
+    SCALAR_ROW(rest.rest_tau, "s", "time constant of the rest detector's low-pass filters"),
+    SCALAR_ROW(rest.bias_tau, "s", "averaging time of the gyro offset, 0 = no offset estimation"),
+    SCALAR_ROW(rest.bias_max, "rad/s", "|gyro offset| per axis never exceeds this"),
     SCALAR_ROW(gravity, "m/s^2", "magnitude of gravity"),
     SCALAR_ROW(accel_noise, "m/s^2", "accelerometer noise incl. unmodelled motion, 1 sigma"),
     SCALAR_ROW(accel_band, "m/s^2", "| |a| - g | at which the accel variance doubles, 0 = off"),
     SCALAR_ROW(accel_reject, "m/s^2", "| |a| - g | above which accel is not fused"),
+    SCALAR_ROW(accel_adapt_tau, "s", "running mean of ( |a| - g )^2 added to the accel variance, 0 = off"),
+    SCALAR_ROW(accel_lpf_tau, "s", "accel low-pass in the earth-fixed (rate-compensated) frame, 0 = off"),
     SCALAR_ROW(accel_gate, "sigma", "accel innovation gate, 0 = off"),
     SCALAR_ROW(accel_range, "m/s^2", "accel |component| above this is refused"),
     SCALAR_ROW(mag_heading_noise, "rad", "magnetic heading noise, 1 sigma"),
     SCALAR_ROW(mag_gate, "sigma", "magnetometer innovation gate, 0 = off"),
     SCALAR_ROW(mag_norm_tol, "fraction", "allowed | |m|/ref - 1 | before 'disturbed'"),
     SCALAR_ROW(mag_dip_tol, "rad", "allowed |dip - ref dip| before 'disturbed'"),
+    SCALAR_ROW(mag_reset_time, "s", "gating of an undisturbed field after which the heading is reset, 0 = never"),
     SCALAR_ROW(mag_ref_norm, "uT", "reference field norm, 0 = learn at alignment"),
     SCALAR_ROW(mag_ref_dip, "rad", "reference dip, positive down (if mag_ref_norm > 0)"),
     SCALAR_ROW(mag_declination, "rad", "magnetic declination, east positive"),
@@ -78,6 +87,8 @@ static const setting_row_t *find_setting(const char *name)
 
 int attekf_api_version(void) { return ATTEKF_NATIVE_API_VERSION; }
 const char *attekf_scalar_name(void) { return EKF_SCALAR_NAME; }
+uint32_t attekf_scalar_saturations(void) { return ekf_scalar_saturations(); }
+void attekf_scalar_saturations_reset(void) { ekf_scalar_saturations_reset(); }
 size_t attekf_settings_size(void) { return sizeof(att_settings_t); }
 size_t attekf_filter_size(void) { return sizeof(att_ekf_t); }
 
@@ -115,9 +126,10 @@ int attekf_setting_set(att_settings_t *s, const char *name, double value)
         v = (uint16_t)value;
         memcpy(base + row->offset, &v, sizeof v);
     } else {
-        /* A double beyond float's range becomes inf in a float build: refuse it here
-         * rather than let att_settings_check report an unnamed setting. */
-        const ekf_scalar_t v = (ekf_scalar_t)value;
+        /* A double beyond float's range becomes inf in a float build (and beyond the Q
+         * format's in the fixed-point build): refuse it here rather than let
+         * att_settings_check report an unnamed setting. */
+        const ekf_scalar_t v = ekf_from_double(value);
         if (!ekf_isfinite(v)) {
             return ATTEKF_SETTING_BAD_VALUE;
         }
@@ -143,7 +155,7 @@ int attekf_setting_get(const att_settings_t *s, const char *name, double *value)
     } else {
         ekf_scalar_t v;
         memcpy(&v, base + row->offset, sizeof v);
-        *value = (double)v;
+        *value = ekf_to_double(v);
     }
     return ATTEKF_SETTING_OK;
 }
@@ -209,9 +221,9 @@ void attekf_diag_get(const att_ekf_t *f, uint32_t *out)
  * ------------------------------------------------------------------------------------ */
 static void to_scalar3(const double *in, ekf_scalar_t out[3])
 {
-    out[0] = (ekf_scalar_t)in[0];
-    out[1] = (ekf_scalar_t)in[1];
-    out[2] = (ekf_scalar_t)in[2];
+    out[0] = ekf_from_double(in[0]);
+    out[1] = ekf_from_double(in[1]);
+    out[2] = ekf_from_double(in[2]);
 }
 
 int attekf_run(att_ekf_t *f, size_t n, const double *dt, const double *gyr, const double *acc,
@@ -228,7 +240,7 @@ int attekf_run(att_ekf_t *f, size_t n, const double *dt, const double *gyr, cons
         att_step_report_t rep;
         ekf_status_t st;
         memset(&s, 0, sizeof s);
-        s.dt = (ekf_scalar_t)dt[i];
+        s.dt = ekf_from_double(dt[i]);
         to_scalar3(&gyr[3 * i], s.gyro);
         to_scalar3(&acc[3 * i], s.accel);
         s.valid = (uint8_t)(ATT_HAS_GYRO | ATT_HAS_ACCEL);
@@ -244,21 +256,21 @@ int attekf_run(att_ekf_t *f, size_t n, const double *dt, const double *gyr, cons
         if (state != NULL) {
             const ekf_scalar_t *x = att_state(f);
             for (k = 0; k < ATT_N; ++k) {
-                state[(size_t)ATT_N * i + (size_t)k] = (double)x[k];
+                state[(size_t)ATT_N * i + (size_t)k] = ekf_to_double(x[k]);
             }
         }
         if (var != NULL) {
             ekf_scalar_t v[ATT_N];
             att_get_variances(f, v);
             for (k = 0; k < ATT_N; ++k) {
-                var[(size_t)ATT_N * i + (size_t)k] = (double)v[k];
+                var[(size_t)ATT_N * i + (size_t)k] = ekf_to_double(v[k]);
             }
         }
         if (quat != NULL) {
             ekf_scalar_t q[4];
             att_get_quaternion(f, q);
             for (k = 0; k < 4; ++k) {
-                quat[4u * i + (size_t)k] = (double)q[k];
+                quat[4u * i + (size_t)k] = ekf_to_double(q[k]);
             }
         }
         if (flags != NULL) {

@@ -46,8 +46,12 @@ enum {
 };
 
 int attekf_api_version(void);
-/* "float" or "double": the ekf_scalar_t this library was built with. */
+/* "float", "double" or "fixed": the ekf_scalar_t this library was built with. */
 const char *attekf_scalar_name(void);
+/* Fixed-point build: operations that saturated the Q format since load or the last reset
+ * (program-wide, docs/fixed_point.md); always 0 for float and double. */
+uint32_t attekf_scalar_saturations(void);
+void attekf_scalar_saturations_reset(void);
 size_t attekf_settings_size(void); /* sizeof(att_settings_t) */
 /* sizeof(att_ekf_t). A caller-allocated filter buffer must be aligned for att_ekf_t:
  * an array of doubles is, on every host ABI. */

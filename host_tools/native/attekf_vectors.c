@@ -162,11 +162,11 @@ int main(int argc, char **argv)
         }
 
         memset(&s, 0, sizeof s);
-        s.dt = (ekf_scalar_t)dt;
+        s.dt = ekf_from_double(dt);
         for (k = 0; k < 3; ++k) {
-            s.gyro[k] = (ekf_scalar_t)gyr[k];
-            s.accel[k] = (ekf_scalar_t)acc[k];
-            s.mag[k] = (ekf_scalar_t)mag[k];
+            s.gyro[k] = ekf_from_double(gyr[k]);
+            s.accel[k] = ekf_from_double(acc[k]);
+            s.mag[k] = ekf_from_double(mag[k]);
         }
         s.valid = ATT_HAS_GYRO | ATT_HAS_ACCEL;
         if (!(isnan(mag[0]) && isnan(mag[1]) && isnan(mag[2]))) {
@@ -187,15 +187,15 @@ int main(int argc, char **argv)
         fprintf(fp, " |");
         x = att_state(&f);
         for (k = 0; k < ATT_N; ++k) {
-            put(fp, (double)x[k]);
+            put(fp, ekf_to_double(x[k]));
         }
         att_get_variances(&f, v);
         for (k = 0; k < ATT_N; ++k) {
-            put(fp, (double)v[k]);
+            put(fp, ekf_to_double(v[k]));
         }
         att_get_quaternion(&f, qe);
         for (k = 0; k < 4; ++k) {
-            put(fp, (double)qe[k]);
+            put(fp, ekf_to_double(qe[k]));
         }
         fprintf(fp, " %lu %d %d %d %d %d\n", (unsigned long)att_flags(&f), (int)st, (int)rep.predict,
                 (int)rep.gyro, (int)rep.accel, (int)rep.mag);

@@ -63,11 +63,11 @@ int main(int argc, char **argv)
         profile(sim.t, w, lin, &dist);
         ts_sim_step(&sim, w, lin, &smp);
         if (dist) {
-            smp.mag[0] = smp.mag[0] + EKF_C(15); /* hard-iron-like offset, uT */
+            smp.mag[0] = ekf_add(smp.mag[0], EKF_C(15)); /* hard-iron-like offset, uT */
         }
         (void)att_step(&f, &smp, NULL);
         att_get_euler(&f, e);
-        fprintf(out, "%.6f %.9e %.9e %.9e\n", sim.t, (double)e[0], (double)e[1], (double)e[2]);
+        fprintf(out, "%.6f %.9e %.9e %.9e\n", sim.t, ekf_to_double(e[0]), ekf_to_double(e[1]), ekf_to_double(e[2]));
     }
     fclose(out);
     printf("%s: %d samples written to %s\n", EKF_SCALAR_NAME, k, argv[1]);

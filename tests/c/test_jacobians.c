@@ -43,10 +43,10 @@ static double entry_error(double a, double b)
 static void analytic_F(const double x[ATT_N], double dt, double F[ATT_N * ATT_N])
 {
     double xn[ATT_N], d[ATT_GEN_F_NNZ];
-    att_trig_t tn;
+    att_trig_t tm, tn;
     int i;
-    att_model_transition(x, NULL, dt, NO_CLAMP, xn, &tn);
-    att_gen_transition_jacobian(&tn, x, dt, d);
+    att_model_transition(x, NULL, dt, NO_CLAMP, xn, &tm, &tn);
+    att_gen_transition_jacobian(&tm, &tn, x, dt, d);
     for (i = 0; i < ATT_N * ATT_N; ++i) {
         F[i] = 0.0;
     }
@@ -76,8 +76,8 @@ static void central(const double x[ATT_N], const double w[3], double dt, int wrt
         xp[j] += h;
         xm[j] -= h;
     }
-    att_model_transition(xp, wp, dt, NO_CLAMP, fp, NULL);
-    att_model_transition(xm, wm, dt, NO_CLAMP, fm, NULL);
+    att_model_transition(xp, wp, dt, NO_CLAMP, fp, NULL, NULL);
+    att_model_transition(xm, wm, dt, NO_CLAMP, fm, NULL, NULL);
     for (i = 0; i < ATT_N; ++i) {
         out[i] = (fp[i] - fm[i]) / (2.0 * h);
     }
@@ -95,23 +95,26 @@ static void richardson(const double x[ATT_N], double dt, int wrt_noise, int j, d
     }
 }
 
-/* Step for state j given the distance 'margin' of the advanced pitch from +-90 deg. */
-static double step_for(int j, double margin, double dt)
+/* Finite-difference step for state j. W is singular at theta = +-90 deg and is evaluated at
+ * the midpoint pitch (distance margin_m from 90 deg) and at the advanced angles (margin_n):
+ * the step must move each pitch by a small fraction of its margin and each roll by a small
+ * fraction of a radian. F's angle rows give the advanced angles' sensitivity. */
+static double step_for(int j, const double F[ATT_N * ATT_N], double dt, double margin_m, double margin_n)
 {
+    const double c = 1.0 / 200.0;
     double h = 1e-3;
-    if (margin < 0.2) {
-        h = margin / 200.0;
-    }
-    if (j == ATT_PHID || j == ATT_THETAD || j == ATT_PSID) {
-        h /= dt; /* these enter through the advanced angles, scaled by dt */
-        if (h > 1e-2) {
-            h = 1e-2;
-        }
-    }
+    double d_phim = (j == ATT_PHI) ? 1.0 : (j == ATT_PHID) ? 0.5 * dt : 0.0;
+    double d_thm = (j == ATT_THETA) ? 1.0 : (j == ATT_THETAD) ? 0.5 * dt : 0.0;
+    double d_phin = fabs(F[ATT_PHI * ATT_N + j]);
+    double d_thn = fabs(F[ATT_THETA * ATT_N + j]);
+    if (d_phim > 0.0) h = fmin(h, c / d_phim);
+    if (d_thm > 0.0) h = fmin(h, c * margin_m / d_thm);
+    if (d_phin > 0.0) h = fmin(h, c / d_phin);
+    if (d_thn > 0.0) h = fmin(h, c * margin_n / d_thn);
     return h;
 }
 
-static double check_transition(const double x[ATT_N], double dt, double margin)
+static double check_transition(const double x[ATT_N], double dt, double margin_m, double margin_n)
 {
     double F[ATT_N * ATT_N], col[ATT_N], G[ATT_N * 3], g[9];
     double worst = 0.0;
@@ -120,7 +123,7 @@ static double check_transition(const double x[ATT_N], double dt, double margin)
     int i, j;
     analytic_F(x, dt, F);
     for (j = 0; j < ATT_N; ++j) {
-        richardson(x, dt, 0, j, step_for(j, margin, dt), col);
+        richardson(x, dt, 0, j, step_for(j, F, dt, margin_m, margin_n), col);
         for (i = 0; i < ATT_N; ++i) {
             const double e = entry_error(F[i * ATT_N + j], col[i]);
             if (e > worst) {
@@ -129,7 +132,7 @@ static double check_transition(const double x[ATT_N], double dt, double margin)
         }
     }
     /* noise Jacobian G = [I; 0; g] */
-    att_model_transition(x, NULL, dt, NO_CLAMP, xn, &tn);
+    att_model_transition(x, NULL, dt, NO_CLAMP, xn, NULL, &tn);
     att_gen_noise_jacobian(&tn, g);
     for (i = 0; i < ATT_N * 3; ++i) {
         G[i] = 0.0;
@@ -141,7 +144,8 @@ static double check_transition(const double x[ATT_N], double dt, double margin)
         }
     }
     for (j = 0; j < 3; ++j) {
-        richardson(x, dt, 1, j, margin < 0.2 ? margin / 200.0 : 1e-3, col);
+        /* w enters only omega+, and Thetadot+ = W(Theta+) omega+ is linear in it */
+        richardson(x, dt, 1, j, 1e-3, col);
         for (i = 0; i < ATT_N; ++i) {
             const double e = entry_error(G[i * 3 + j], col[i]);
             if (e > worst_G) {
@@ -221,8 +225,14 @@ static void check_mag(const double x[ATT_N])
     }
 }
 
-static void random_state(ts_rng_t *r, double x[ATT_N], double dt, double theta_next)
+/* Random state whose advanced pitch (at_mid = 0) or midpoint pitch (at_mid = 1), where W is
+ * evaluated, is theta_target. margin_m, margin_n: distances of the midpoint and the
+ * advanced pitch from +-90 deg (rad). */
+static void random_state(ts_rng_t *r, double x[ATT_N], double dt, double theta_target, int at_mid,
+                         double *margin_m, double *margin_n)
 {
+    const double half_pi = 1.5707963267948966;
+    double phim, thm, thn;
     int i;
     for (i = 0; i < 3; ++i) {
         x[ATT_P + i] = ts_uniform_in(r, -10.0, 10.0);
@@ -230,8 +240,17 @@ static void random_state(ts_rng_t *r, double x[ATT_N], double dt, double theta_n
     }
     x[ATT_PHI] = ts_uniform_in(r, -3.14159, 3.14159);
     x[ATT_PSI] = ts_uniform_in(r, -3.14159, 3.14159);
-    /* choose the advanced pitch, where W is evaluated, then back out theta */
-    x[ATT_THETA] = theta_next - dt * x[ATT_THETAD];
+    /* theta+ = theta + dt (cos(phi_m) q - sin(phi_m) r), phi_m = phi + dt/2 phid */
+    phim = x[ATT_PHI] + 0.5 * dt * x[ATT_PHID];
+    if (at_mid) {
+        x[ATT_THETA] = theta_target - 0.5 * dt * x[ATT_THETAD];
+    } else {
+        x[ATT_THETA] = theta_target - dt * (cos(phim) * x[ATT_Q] - sin(phim) * x[ATT_R]);
+    }
+    thm = x[ATT_THETA] + 0.5 * dt * x[ATT_THETAD];
+    thn = x[ATT_THETA] + dt * (cos(phim) * x[ATT_Q] - sin(phim) * x[ATT_R]);
+    *margin_m = half_pi - fabs(thm);
+    *margin_n = half_pi - fabs(thn);
 }
 
 static void test_transition_jacobian_random_states(void)
@@ -242,10 +261,13 @@ static void test_transition_jacobian_random_states(void)
     for (n = 0; n < N_RANDOM; ++n) {
         double x[ATT_N];
         const double dt = ts_uniform_in(&r, 1e-3, 0.05);
-        const double thn = ts_uniform_in(&r, -1.4, 1.4);
-        random_state(&r, x, dt, thn);
+        double mm, mn;
+        random_state(&r, x, dt, ts_uniform_in(&r, -1.4, 1.4), n % 2, &mm, &mn);
+        if (mm < 0.05 || mn < 0.05) {
+            continue; /* the other pitch came close to 90 deg: the next test covers that */
+        }
         {
-            const double e = check_transition(x, dt, 1.5707963267948966 - fabs(thn));
+            const double e = check_transition(x, dt, mm, mn);
             if (e > worst_F) {
                 worst_F = e;
             }
@@ -269,7 +291,8 @@ static void test_transition_jacobian_at_rest(void)
         x[ATT_THETA] = ts_uniform_in(&r, -1.5, 1.5);
         x[ATT_PSI] = ts_uniform_in(&r, -3.14159, 3.14159);
         {
-            const double e = check_transition(x, dt, 1.5707963267948966 - fabs(x[ATT_THETA]));
+            const double margin = 1.5707963267948966 - fabs(x[ATT_THETA]);
+            const double e = check_transition(x, dt, margin, margin); /* at rest theta+ = theta */
             if (e > worst_F_rest) {
                 worst_F_rest = e;
             }
@@ -289,11 +312,15 @@ static void test_transition_jacobian_near_singularity(void)
     for (n = 0; n < N_SINGULAR; ++n) {
         double x[ATT_N];
         const double dt = ts_uniform_in(&r, 1e-3, 0.05);
-        const double margin = ts_uniform_in(&r, 1e-3, 1e-2); /* 0.06 .. 0.6 deg from 90 deg */
-        const double thn = (n % 2 ? 1.0 : -1.0) * (1.5707963267948966 - margin);
-        double e;
-        random_state(&r, x, dt, thn);
-        e = check_transition(x, dt, margin);
+        const double target = ts_uniform_in(&r, 1e-3, 1e-2); /* 0.06 .. 0.6 deg from 90 deg */
+        const double sign = (n % 2) ? 1.0 : -1.0;
+        /* alternately the midpoint and the advanced pitch next to the singularity */
+        double mm, mn, e;
+        random_state(&r, x, dt, sign * (1.5707963267948966 - target), (n / 2) % 2, &mm, &mn);
+        if (!(mm > 1e-4 && mn > 1e-4)) {
+            continue; /* the other pitch landed on (or past) the singularity itself */
+        }
+        e = check_transition(x, dt, mm, mn);
         if (e > worst) {
             worst = e;
         }

@@ -7,25 +7,34 @@ angles (rad), Euler-angle rates (rad/s). Earth frame ENU (z up); the rotation
 Transition over one step ``dt`` with angular-acceleration noise ``w`` (rad/s, the change of
 the body rate over the step):
 
-    omega+  = omega + w                       (body rates: random walk)
-    Theta+  = Theta + dt * Thetadot           (angles integrated with the Euler-rate states)
-    Thetadot+ = W(phi+, theta+) * omega+      (Euler rates from body rates, ZYX kinematics)
+    omega+    = omega + w                           (body rates: random walk)
+    Theta_m   = Theta + dt/2 * Thetadot             (angles half a step ahead)
+    Theta+    = Theta + dt * W(phi_m, theta_m) omega (angles: midpoint rule)
+    Thetadot+ = W(phi+, theta+) * omega+            (Euler rates from body rates, ZYX kinematics)
+
+The angles integrate the body rate just fused (the gyro sample of the interval ending now)
+through W evaluated half a step ahead: the midpoint rule, second order. The first-order rule
+Theta+ = Theta + dt * Thetadot lags one sample and drifts by O(dt^2 |omega|^2) per step, tens
+of degrees in a few seconds of fast tumbling at 286 Hz (docs/derivation.md, "Transition").
 
 ``W`` is the body-rate to Euler-rate map; ``E = W^-1`` (Euler rates to body rates) is
 generated too. Every Jacobian below is ``sympy``'s partial derivative of these expressions
 with all nine states independent: no ratio of time derivatives appears anywhere.
 
 Trigonometry is not evaluated in the generated code. The caller passes the sines, cosines
-and ``sec(theta)`` of the angles the function is evaluated at (``att_trig_t``), computed once
+and ``sec(theta)`` of the angles the function is evaluated at (``att_trig_t``: for the
+transition, of the midpoint angles ``tm`` and of the advanced angles ``t``), computed once
 per step in hand-written code that also applies the gimbal-lock clamp (att_model.c).
 """
 
 from __future__ import annotations
 
+import math
 from typing import Dict
 
 import sympy as sp
 
+from . import covprop
 from .cprinter import CFunction, render_files, sparse_entries
 
 STATE_NAMES = ["P", "Q", "R", "PHI", "THETA", "PSI", "PHID", "THETAD", "PSID"]
@@ -40,6 +49,8 @@ NOISE = sp.Matrix([wp, wq, wr])
 
 # Trigonometric terms handed in by the caller (att_trig_t).
 sph, cph, sth, cth, secth = sp.symbols("sph cph sth cth secth", real=True)
+TRIG = (sph, cph, sth, cth, secth)
+TRIG_MID = sp.symbols("sphm cphm sthm cthm secthm", real=True)
 mx, my, mz = sp.symbols("mx my mz", real=True)
 
 
@@ -77,12 +88,23 @@ def rot_z(a: sp.Expr) -> sp.Matrix:
     return sp.Matrix([[sp.cos(a), -sp.sin(a), 0], [sp.sin(a), sp.cos(a), 0], [0, 0, 1]])
 
 
+def midpoint_angles() -> tuple:
+    """(phi_m, theta_m): roll and pitch half a step ahead, where W is evaluated."""
+    return phi + dt / 2 * phid, theta + dt / 2 * thetad
+
+
+def advanced_angles() -> sp.Matrix:
+    """Theta+ = Theta + dt W(phi_m, theta_m) omega (the rate before the noise)."""
+    phim, thm = midpoint_angles()
+    return sp.Matrix([phi, theta, psi]) + dt * euler_rate_map(phim, thm) * sp.Matrix([p, q, r])
+
+
 def transition() -> sp.Matrix:
     """f(x, w, dt) as above."""
     omega = sp.Matrix([p, q, r]) + NOISE
-    phin, thn, psin = phi + dt * phid, theta + dt * thetad, psi + dt * psid
-    rates = euler_rate_map(phin, thn) * omega
-    return sp.Matrix([omega[0], omega[1], omega[2], phin, thn, psin, rates[0], rates[1], rates[2]])
+    ang = advanced_angles()
+    rates = euler_rate_map(ang[0], ang[1]) * omega
+    return sp.Matrix([omega[0], omega[1], omega[2], ang[0], ang[1], ang[2], rates[0], rates[1], rates[2]])
 
 
 def accel_direction() -> sp.Matrix:
@@ -99,27 +121,57 @@ def mag_levelled() -> sp.Matrix:
     return rot_y(theta) * rot_x(phi) * sp.Matrix([mx, my, mz])
 
 
-def _trig_subs(expr: sp.Expr, ph: sp.Expr, th: sp.Expr) -> sp.Expr:
-    """Replace trig functions of (ph, th) by the caller-supplied att_trig_t symbols."""
+def _trig_subs(expr: sp.Expr, ph: sp.Expr, th: sp.Expr, syms: tuple = TRIG) -> sp.Expr:
+    """Replace trig functions of (ph, th) by the caller-supplied att_trig_t symbols
+    syms = (sph, cph, sth, cth, secth)."""
+    s_ph, c_ph, s_th, c_th, sec_th = syms
     expr = sp.sympify(expr)
     expr = expr.subs(
         {
-            sp.tan(th): sth * secth,
-            sp.sin(ph): sph,
-            sp.cos(ph): cph,
-            sp.sin(th): sth,
+            sp.tan(th): s_th * sec_th,
+            sp.sin(ph): s_ph,
+            sp.cos(ph): c_ph,
+            sp.sin(th): s_th,
         }
     )
-    expr = expr.subs(sp.cos(th), cth)
+    expr = expr.subs(sp.cos(th), c_th)
     expr = expr.replace(
-        lambda e: e.is_Pow and e.base == cth and e.exp.is_Integer and e.exp < 0,
-        lambda e: secth ** (-e.exp),
+        lambda e: e.is_Pow and e.base == c_th and e.exp.is_Integer and e.exp < 0,
+        lambda e: sec_th ** (-e.exp),
     )
     expr = sp.expand(expr)
     leftover = expr.atoms(sp.Function)
     if leftover:
         raise ValueError(f"trig left after substitution: {leftover}")
     return expr
+
+
+def transition_jacobians() -> tuple:
+    """(F, G): df/dx and df/dw at w = 0, trig replaced by att_trig_t symbols (TRIG_MID for
+    the midpoint angles, TRIG for the advanced ones).
+
+    Same partial derivatives as ``transition().jacobian(...)``, taken with the chain rule
+    through the advanced angles so that sympy never differentiates trig of a nested
+    expression: Thetadot+ = W(a, b) omega+ with (a, b) = (phi+, theta+), so
+    d Thetadot+/dx = W(a, b) d omega+/dx + dW omega/da d phi+/dx + dW omega/db d theta+/dx.
+    """
+    phim, thm = midpoint_angles()
+    ang = advanced_angles()
+    j_ang = ang.jacobian(X).applyfunc(lambda e: _trig_subs(e, phim, thm, TRIG_MID))
+    a, b = sp.symbols("a_adv b_adv", real=True)
+    omega = sp.Matrix([p, q, r]) + NOISE
+    rates = euler_rate_map(a, b) * omega
+    j_rates = rates.jacobian(X) + rates.diff(a) * j_ang[0, :] + rates.diff(b) * j_ang[1, :]
+    zero_noise = {wp: 0, wq: 0, wr: 0}
+    j_rates = j_rates.subs(zero_noise).applyfunc(lambda e: _trig_subs(e, a, b))
+    F = sp.zeros(9, 9)
+    F[0:3, 0:3] = sp.eye(3)
+    F[3:6, :] = j_ang
+    F[6:9, :] = j_rates
+    G = sp.zeros(9, 3)
+    G[0:3, 0:3] = sp.eye(3)
+    G[6:9, :] = rates.jacobian(NOISE).subs(zero_noise).applyfunc(lambda e: _trig_subs(e, a, b))
+    return F, G
 
 
 def _index(i: int) -> str:
@@ -133,24 +185,54 @@ TRIG_PROLOGUE = [
     "const ekf_scalar_t cth = t->cth;",
     "const ekf_scalar_t secth = t->secth;",
 ]
+TRIG_MID_PROLOGUE = [
+    "const ekf_scalar_t sphm = tm->sphi;",
+    "const ekf_scalar_t cphm = tm->cphi;",
+    "const ekf_scalar_t sthm = tm->sth;",
+    "const ekf_scalar_t cthm = tm->cth;",
+    "const ekf_scalar_t secthm = tm->secth;",
+]
 STATE_PROLOGUE = [f"const ekf_scalar_t {s.name} = x[{_index(i)}];" for i, s in enumerate(X)]
 
 
-def build() -> Dict[str, str]:
-    f = transition()
-    phin, thn = phi + dt * phid, theta + dt * thetad
-    zero_noise = {wp: 0, wq: 0, wr: 0}
+def _check_against_transition(F: sp.Matrix, G: sp.Matrix) -> None:
+    """The chain-rule Jacobians equal sympy's direct derivatives of transition() (checked
+    numerically at a few random states; the direct symbolic form is too slow to simplify)."""
+    import random
 
-    F = f.jacobian(X).subs(zero_noise)
+    f = transition()
+    direct = sp.lambdify([X, NOISE, dt], (f.jacobian(X), f.jacobian(NOISE)), ["math", "mpmath"])
+    rng = random.Random(7)
+    for _ in range(5):
+        xs = [rng.uniform(-2, 2) for _ in range(9)]
+        h = rng.uniform(1e-3, 5e-2)
+        vals = {sym: v for sym, v in zip(X, xs)}
+        vals[dt] = h
+        phm, thm_ = xs[3] + h / 2 * xs[6], xs[4] + h / 2 * xs[7]
+        Wm = euler_rate_map(phm, thm_)
+        adv = [xs[3 + k] + h * sum(float(Wm[k, j]) * xs[j] for j in range(3)) for k in range(3)]
+        for syms, (ph_, th_) in ((TRIG_MID, (phm, thm_)), (TRIG, (adv[0], adv[1]))):
+            c = math.cos(th_)
+            vals.update(dict(zip(syms, (math.sin(ph_), math.cos(ph_), math.sin(th_), c, 1 / c))))
+        Fd, Gd = direct(xs, [0.0, 0.0, 0.0], h)
+        for mine, ref in ((F, Fd), (G, Gd)):
+            got = mine.subs(vals)
+            for i in range(got.rows):
+                for j in range(got.cols):
+                    assert abs(float(got[i, j]) - float(ref[i, j])) < 1e-9 * (1 + abs(float(ref[i, j]))), (i, j)
+
+
+def build() -> Dict[str, str]:
+    F, G = transition_jacobians()
+    _check_against_transition(F, G)
     D = F - sp.eye(9)
-    d_entries = [(i, j, _trig_subs(e, phin, thn)) for i, j, e in sparse_entries(D)]
-    G = f.jacobian(NOISE).subs(zero_noise)
-    g_entries = [(i, j, _trig_subs(e, phin, thn)) for i, j, e in sparse_entries(G)]
+    d_entries = sparse_entries(D)
+    g_entries = sparse_entries(G)
     # The noise Jacobian is [I; 0; W(phi+, theta+)]: only its Euler-rate block depends on
     # the state, the rest is identity and is applied as such by att_model.c.
     g_block = [(i, j, G[i, j]) for i in range(6, 9) for j in range(3)]
-    g_block = [(i, j, _trig_subs(e, phin, thn)) for i, j, e in g_block]
     assert all(e == 1 for i, j, e in g_entries if i < 6 and i == j)
+    assert all(i >= 6 or i == j for i, j, e in g_entries)
 
     W = euler_rate_map(phi, theta)
     Einv = body_rate_map(phi, theta)
@@ -195,11 +277,11 @@ def build() -> Dict[str, str]:
         CFunction(
             name="att_gen_transition_jacobian",
             doc="Non-zero entries of D = F - I, F = df/dx, in the order of att_gen_f_pattern.\n"
-            "x: state before the step; dt: step (s); t: trigonometry of the advanced angles\n"
-            "(phi + dt phid, theta + dt thetad).",
-            params="const att_trig_t *t, const ekf_scalar_t x[ATT_N], ekf_scalar_t dt, "
+            "x: state before the step; dt: step (s); tm: trigonometry of the midpoint angles\n"
+            "(phi + dt/2 phid, theta + dt/2 thetad); t: of the advanced angles.",
+            params="const att_trig_t *tm, const att_trig_t *t, const ekf_scalar_t x[ATT_N], ekf_scalar_t dt, "
             "ekf_scalar_t d[ATT_GEN_F_NNZ]",
-            prologue=TRIG_PROLOGUE + STATE_PROLOGUE,
+            prologue=TRIG_MID_PROLOGUE + TRIG_PROLOGUE + STATE_PROLOGUE,
             outputs=[(f"d[{k}]", e) for k, (_, _, e) in enumerate(d_entries)],
         )
     )
@@ -259,6 +341,11 @@ def build() -> Dict[str, str]:
         "extern const ekf_nz_t att_gen_f_pattern[ATT_GEN_F_NNZ];"
     )
     source_extra = f"const ekf_nz_t att_gen_f_pattern[ATT_GEN_F_NNZ] = {{\n    {pattern}\n}};"
+    # P <- F P F^T unrolled for this pattern (perf: docs/performance.md)
+    prop_decl, prop_def = covprop.emit("att_gen_cov_propagate", 9, "ATT_N", "ATT_GEN_F_NNZ",
+                                       [(i, j) for i, j, _ in d_entries], _index, "att_gen_f_pattern")
+    header_extra += "\n\n" + prop_decl
+    source_extra += "\n\n" + prop_def
     return render_files(
         stem="att_gen",
         title="attitude model: kinematics, Jacobians and measurement functions",

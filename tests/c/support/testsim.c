@@ -157,14 +157,14 @@ void ts_sim_step(ts_sim_t *s, const double w[3], const double lin_acc[3], att_sa
             fe[i] += lin_acc[i];
         }
     }
-    out->dt = (ekf_scalar_t)c->dt;
+    out->dt = ekf_from_double(c->dt);
     for (i = 0; i < 3; ++i) {
         /* body = R^T earth */
         const double fb = s->R[0 * 3 + i] * fe[0] + s->R[1 * 3 + i] * fe[1] + s->R[2 * 3 + i] * fe[2];
         const double mb = s->R[0 * 3 + i] * me[0] + s->R[1 * 3 + i] * me[1] + s->R[2 * 3 + i] * me[2];
-        out->gyro[i] = (ekf_scalar_t)(w[i] + c->gyro_bias[i] + c->gyro_noise * ts_gauss(&s->rng));
-        out->accel[i] = (ekf_scalar_t)(fb + c->accel_noise * ts_gauss(&s->rng));
-        out->mag[i] = (ekf_scalar_t)(mb + c->mag_noise * ts_gauss(&s->rng));
+        out->gyro[i] = ekf_from_double(w[i] + c->gyro_bias[i] + c->gyro_noise * ts_gauss(&s->rng));
+        out->accel[i] = ekf_from_double(fb + c->accel_noise * ts_gauss(&s->rng));
+        out->mag[i] = ekf_from_double(mb + c->mag_noise * ts_gauss(&s->rng));
     }
     out->valid = ATT_HAS_GYRO | ATT_HAS_ACCEL | ATT_HAS_MAG;
 }
@@ -197,7 +197,7 @@ int ts_is_positive_definite(const ekf_scalar_t *P, int n, double *min_pivot)
     }
     for (i = 0; i < n; ++i) {
         for (j = 0; j <= i; ++j) {
-            double sum = (double)P[i * n + j];
+            double sum = ekf_to_double(P[i * n + j]);
             for (k = 0; k < j; ++k) {
                 sum -= L[i * 32 + k] * L[j * 32 + k];
             }

@@ -1,0 +1,373 @@
+/*
+ * test_fixed.c - the Q-format arithmetic of the fixed-point build (firmware/ekf/ekf_fixed.c)
+ * against double precision: exactness of multiply and divide, the stated error bounds of
+ * sqrt, sin, cos and atan2 (docs/fixed_point.md), saturation (counted, infinite, refused
+ * by the finiteness checks) and the filter's generic pieces in fixed point. Built for the
+ * FIXED scalar only, on the host and, in the cortex-m3-fixed preset, under QEMU.
+ */
+#include <math.h>
+#include <stdio.h>
+
+#include "ekf.h"
+#include "testsim.h"
+#include "unity.h"
+
+void setUp(void) { ekf_scalar_saturations_reset(); }
+void tearDown(void) {}
+
+#define LSB (1.0 / (double)EKF_FX_ONE)
+/* Random trials per check; a tenth under QEMU (soft double in the reference is slow). */
+#if defined(ATTEKF_BARE_METAL)
+#define TRIALS 10000
+#else
+#define TRIALS 100000
+#endif
+
+/* Stated bounds (ekf_fixed.h, docs/fixed_point.md). */
+#define SIN_COS_ABS (3.0 * LSB)
+#define ATAN2_ABS (3.0 * LSB)
+#define SQRT_REL 4.7e-10 /* 2^-31 */
+
+static double d(ekf_scalar_t a) { return ekf_to_double(a); }
+
+/* Random value with at most 26 significant bits and magnitude about 2^(e - FRAC) for e in
+ * [lo, hi]: products of two such values are exact in double. */
+static ekf_scalar_t random_short(ts_rng_t *r, int lo, int hi)
+{
+    const int e = lo + (int)(ts_uniform(r) * (double)(hi - lo + 1));
+    const int64_t m = (int64_t)(ts_uniform(r) * 67108864.0); /* < 2^26 */
+    const int64_t v = (e >= 26) ? (m << (e - 26)) : (m >> (26 - e));
+    return (ts_uniform(r) < 0.5) ? -v : v;
+}
+
+/* Exact round-half-away-from-zero of a double holding an integer + fraction. */
+static double round_away(double v) { return (v < 0.0) ? -floor(-v + 0.5) : floor(v + 0.5); }
+
+static void test_constants_and_conversions(void)
+{
+    TEST_ASSERT_TRUE(EKF_C(1.5) == (ekf_scalar_t)3 << (EKF_FX_FRAC - 1));
+    TEST_ASSERT_TRUE(EKF_C(-0.25) == -(EKF_FX_ONE / 4));
+    TEST_ASSERT_TRUE(EKF_C(1e-30) == 0);
+    TEST_ASSERT_TRUE(ekf_from_int(-3) == EKF_C(-3));
+    TEST_ASSERT_TRUE(ekf_from_double(2.5) == EKF_C(2.5));
+    TEST_ASSERT_TRUE(ekf_from_float(-9.81f) == ekf_from_double((double)-9.81f));
+    TEST_ASSERT_TRUE(fabs(d(EKF_C(0.1)) - 0.1) <= 0.5 * LSB);
+    TEST_ASSERT_TRUE(ekf_to_float(EKF_C(0.375)) == 0.375f);
+    /* non-finite inputs become non-finite values, uncounted */
+    TEST_ASSERT_FALSE(ekf_isfinite(ekf_from_double((double)NAN)));
+    TEST_ASSERT_FALSE(ekf_isfinite(ekf_from_double(-(double)INFINITY)));
+    TEST_ASSERT_FALSE(ekf_isfinite(ekf_from_float(NAN)));
+    TEST_ASSERT_EQUAL_UINT32(0u, ekf_scalar_saturations());
+    TEST_ASSERT_TRUE(isinf(ekf_to_double(ekf_from_double((double)INFINITY))));
+    /* finite but out of range: saturated and counted */
+    TEST_ASSERT_FALSE(ekf_isfinite(ekf_from_double(1e12)));
+    TEST_ASSERT_FALSE(ekf_isfinite(ekf_from_int(INT32_MIN)));
+    TEST_ASSERT_EQUAL_UINT32(2u, ekf_scalar_saturations());
+}
+
+static void test_saturation_counted_and_propagated(void)
+{
+    const ekf_scalar_t big = (ekf_scalar_t)1 << 62; /* half the range */
+    const ekf_scalar_t root = ekf_sqrt(big);          /* root * root * 4: out of range */
+    ekf_scalar_t s;
+    s = ekf_add(big, big);
+    TEST_ASSERT_FALSE(ekf_isfinite(s));
+    TEST_ASSERT_TRUE(s > 0);
+    TEST_ASSERT_EQUAL_UINT32(1u, ekf_scalar_saturations());
+    /* an infinite operand: non-finite result, no new count */
+    TEST_ASSERT_FALSE(ekf_isfinite(ekf_sub(s, big)));
+    TEST_ASSERT_FALSE(ekf_isfinite(ekf_mul(s, EKF_C(1e-6))));
+    TEST_ASSERT_FALSE(ekf_isfinite(ekf_mul(s, EKF_C(0))));   /* 0 * inf: not a number */
+    TEST_ASSERT_FALSE(ekf_isfinite(ekf_add(s, ekf_neg(s)))); /* inf - inf */
+    TEST_ASSERT_TRUE(ekf_div(EKF_C(3), s) == 0);              /* x / inf = 0 */
+    TEST_ASSERT_EQUAL_UINT32(1u, ekf_scalar_saturations());
+    /* products, quotients, negative overflow, division by zero, sqrt of a negative */
+    TEST_ASSERT_TRUE(ekf_mul(ekf_mul(root, EKF_C(-2)), ekf_mul(root, EKF_C(2))) == EKF_FX_NINF);
+    TEST_ASSERT_TRUE(ekf_div(big, EKF_C(0.25)) == EKF_FX_INF);
+    TEST_ASSERT_TRUE(ekf_div(EKF_C(-1.0), EKF_C(0)) == EKF_FX_NINF);
+    TEST_ASSERT_TRUE(ekf_add(ekf_neg(big), ekf_neg(big)) == EKF_FX_NINF);
+    TEST_ASSERT_FALSE(ekf_isfinite(ekf_sqrt(EKF_C(-1.0))));
+    TEST_ASSERT_EQUAL_UINT32(6u, ekf_scalar_saturations());
+    /* the core's finiteness checks refuse saturated values */
+    {
+        ekf_scalar_t v[3] = {EKF_C(1), EKF_C(2), EKF_C(3)};
+        TEST_ASSERT_EQUAL_INT(1, ekf_all_finite(v, 3));
+        v[1] = s;
+        TEST_ASSERT_EQUAL_INT(0, ekf_all_finite(v, 3));
+    }
+    /* in range: nothing counted, exact */
+    ekf_scalar_saturations_reset();
+    TEST_ASSERT_TRUE(ekf_add(EKF_C(8000000.0), EKF_C(388607.0)) == EKF_C(8388607.0));
+    TEST_ASSERT_TRUE(ekf_mul(EKF_C(2896.0), EKF_C(2896.0)) == EKF_C(8386816.0));
+    TEST_ASSERT_EQUAL_UINT32(0u, ekf_scalar_saturations());
+}
+
+/* mul is the correctly rounded (half away from zero) product; exact check on operands
+ * whose product double holds exactly, bounded check on full-width operands. */
+static void test_mul_correctly_rounded(void)
+{
+    ts_rng_t r;
+    int k;
+    ts_rng_seed(&r, 1);
+    for (k = 0; k < TRIALS; ++k) {
+        const ekf_scalar_t a = random_short(&r, 0, 60), b = random_short(&r, 0, 60);
+        const double exact = (double)a * (double)b / (double)EKF_FX_ONE; /* exact */
+        if (fabs(exact) >= 9.2e18) {
+            continue;
+        }
+        if (!(ekf_mul(a, b) == (ekf_scalar_t)round_away(exact))) {
+            printf("mul %lld * %lld: got %lld, want %.1f\n", (long long)a, (long long)b, (long long)ekf_mul(a, b), exact);
+            TEST_FAIL();
+        }
+        TEST_ASSERT_TRUE(ekf_mul(ekf_neg(a), b) == ekf_neg(ekf_mul(a, b))); /* odd */
+    }
+    for (k = 0; k < TRIALS; ++k) {
+        const ekf_scalar_t a = ekf_from_double(ts_uniform_in(&r, -2896.0, 2896.0));
+        const ekf_scalar_t b = ekf_from_double(ts_uniform_in(&r, -2896.0, 2896.0));
+        const double want = d(a) * d(b);
+        TEST_ASSERT_TRUE(fabs(d(ekf_mul(a, b)) - want) <= 0.5 * LSB + fabs(want) * 3e-16);
+    }
+    TEST_ASSERT_EQUAL_UINT32(0u, ekf_scalar_saturations());
+}
+
+static void test_div_correctly_rounded(void)
+{
+    ts_rng_t r;
+    int k, n = 0;
+    ts_rng_seed(&r, 2);
+    for (k = 0; k < TRIALS; ++k) {
+        const ekf_scalar_t a = random_short(&r, 0, 62), b = random_short(&r, 1, 62);
+        const double want = (double)a / (double)b * (double)EKF_FX_ONE;
+        ekf_scalar_t q;
+        if (b == 0 || fabs(want) >= 9.2e18) {
+            continue;
+        }
+        q = ekf_div(a, b);
+        /* |q - a 2^F / b| <= 1/2 LSB, up to double's own rounding of want */
+        if (!(fabs((double)q - want) <= 0.5 + fabs(want) * 3e-16)) {
+            printf("div %lld / %lld: got %lld, want %.3f\n", (long long)a, (long long)b, (long long)q, want);
+            TEST_FAIL();
+        }
+        ++n;
+    }
+    TEST_ASSERT_TRUE(n > TRIALS / 2);
+    TEST_ASSERT_TRUE(ekf_div(EKF_C(1), EKF_C(3)) == (EKF_FX_ONE + 1) / 3);
+    TEST_ASSERT_TRUE(ekf_div(EKF_C(-7), EKF_C(2)) == EKF_C(-3.5));
+    TEST_ASSERT_EQUAL_UINT32(0u, ekf_scalar_saturations());
+}
+
+static void test_sqrt_error_bound(void)
+{
+    ts_rng_t r;
+    double worst = 0.0;
+    int k;
+    ts_rng_seed(&r, 3);
+    TEST_ASSERT_TRUE(ekf_sqrt(0) == 0);
+    TEST_ASSERT_TRUE(ekf_sqrt(EKF_C(4)) == EKF_C(2));
+    TEST_ASSERT_TRUE(ekf_sqrt(EKF_C(96.2361)) == ekf_sqrt(EKF_C(96.2361))); /* deterministic */
+    for (k = 0; k < 2 * TRIALS; ++k) {
+        /* log-uniform over the whole positive range, 1 LSB .. 8e6 */
+        const ekf_scalar_t a = ekf_from_double(exp(ts_uniform_in(&r, log(LSB), log(8.3e6))));
+        const double want = sqrt(d(a));
+        const double err = fabs(d(ekf_sqrt(a)) - want);
+        const double rel = (err - LSB) / want;
+        if (a <= 0) {
+            continue;
+        }
+        if (rel > worst) {
+            worst = rel;
+        }
+        if (!(err <= SQRT_REL * want + LSB)) {
+            printf("sqrt(%.17g) = %.17g, want %.17g\n", d(a), d(ekf_sqrt(a)), want);
+            TEST_FAIL();
+        }
+    }
+    printf("sqrt: worst relative error beyond 1 LSB %.3e (bound %.1e)\n", worst, SQRT_REL);
+    TEST_ASSERT_EQUAL_UINT32(0u, ekf_scalar_saturations());
+}
+
+static void check_sincos(double x, double *worst)
+{
+    const ekf_scalar_t a = ekf_from_double(x);
+    const double xa = d(a); /* the angle the fixed-point value holds */
+    const double es = fabs(d(ekf_sin(a)) - sin(xa)), ec = fabs(d(ekf_cos(a)) - cos(xa));
+    const double e = (es > ec) ? es : ec;
+    if (e > *worst) {
+        *worst = e;
+    }
+    if (!(e <= SIN_COS_ABS)) {
+        printf("sin/cos(%.17g): error %.3e\n", xa, e);
+        TEST_FAIL();
+    }
+}
+
+static void test_sin_cos_error_bound(void)
+{
+    ts_rng_t r;
+    double worst = 0.0, x;
+    int k;
+    ts_rng_seed(&r, 4);
+    /* the filter's range (|angle| <= 2 pi after one step) densely, every quadrant edge */
+    for (x = -4.0 * 3.141592653589793; x <= 4.0 * 3.141592653589793; x += 100.0 / (double)TRIALS) {
+        check_sincos(x, &worst);
+    }
+    for (k = -16; k <= 16; ++k) {
+        const double edge = (double)k * 0.78539816339744831;
+        check_sincos(edge, &worst);
+        check_sincos(edge + LSB, &worst);
+        check_sincos(edge - LSB, &worst);
+    }
+    /* far arguments, up to 2^20 rad */
+    for (k = 0; k < TRIALS / 5; ++k) {
+        check_sincos(ts_uniform_in(&r, -1048576.0, 1048576.0), &worst);
+    }
+    TEST_ASSERT_TRUE(ekf_sin(0) == 0);
+    TEST_ASSERT_TRUE(ekf_cos(0) == EKF_C(1));
+    printf("sin/cos: worst absolute error %.3e (bound %.1e)\n", worst, SIN_COS_ABS);
+    TEST_ASSERT_EQUAL_UINT32(0u, ekf_scalar_saturations());
+}
+
+static void test_atan2_error_bound(void)
+{
+    ts_rng_t r;
+    double worst = 0.0;
+    int k;
+    ts_rng_seed(&r, 5);
+    for (k = 0; k < 2 * TRIALS; ++k) {
+        /* directions all round, magnitudes 1e-6 .. 1e6 (components of unit vectors, uT) */
+        const double ang = ts_uniform_in(&r, -3.141592653589793, 3.141592653589793);
+        const double m = exp(ts_uniform_in(&r, log(1e-6), log(1e6)));
+        const ekf_scalar_t y = ekf_from_double(m * sin(ang)), x = ekf_from_double(m * cos(ang));
+        const double want = atan2(d(y), d(x));
+        double e = fabs(d(ekf_atan2(y, x)) - want);
+        if (e > 3.0) {
+            e = fabs(e - 6.283185307179586); /* +-pi on the negative x axis */
+        }
+        if (e > worst) {
+            worst = e;
+        }
+        if (!(e <= ATAN2_ABS)) {
+            printf("atan2(%.17g, %.17g): error %.3e\n", d(y), d(x), e);
+            TEST_FAIL();
+        }
+    }
+    TEST_ASSERT_TRUE(ekf_atan2(0, 0) == 0);
+    TEST_ASSERT_TRUE(ekf_atan2(EKF_C(1), 0) == EKF_HALF_PI);
+    TEST_ASSERT_TRUE(ekf_atan2(0, EKF_C(-2)) == EKF_PI);
+    TEST_ASSERT_TRUE(ekf_atan2(EKF_C(-1), 0) == ekf_neg(EKF_HALF_PI));
+    TEST_ASSERT_TRUE(ekf_atan2(EKF_C(2), EKF_C(2)) == EKF_C(0.78539816339744830962));
+    printf("atan2: worst absolute error %.3e (bound %.1e)\n", worst, ATAN2_ABS);
+    TEST_ASSERT_EQUAL_UINT32(0u, ekf_scalar_saturations());
+}
+
+static void test_floor_and_wrap(void)
+{
+    ts_rng_t r;
+    int k;
+    ts_rng_seed(&r, 6);
+    TEST_ASSERT_TRUE(ekf_floor(EKF_C(-0.5)) == EKF_C(-1));
+    TEST_ASSERT_TRUE(ekf_floor(EKF_C(2.75)) == EKF_C(2));
+    TEST_ASSERT_TRUE(ekf_floor(EKF_C(-3)) == EKF_C(-3));
+    for (k = 0; k < TRIALS / 5; ++k) {
+        const ekf_scalar_t a = ekf_from_double(ts_uniform_in(&r, -1000.0, 1000.0));
+        const ekf_scalar_t w = ekf_wrap_pi(a);
+        const double want = remainder(d(a), 6.283185307179586);
+        TEST_ASSERT_TRUE(w >= ekf_neg(EKF_PI) && w < EKF_PI);
+        /* 2 pi is held to 1/2 LSB: the error grows with the number of turns removed */
+        TEST_ASSERT_TRUE(fabs(remainder(d(w) - want, 6.283185307179586)) <= LSB * (4.0 + fabs(d(a)) / 6.28));
+    }
+}
+
+/* One scalar update and a propagation in fixed point against the same in double
+ * (computed here): the core's arithmetic keeps P symmetric and positive definite and
+ * matches double to a few LSB, amplified by 1 / S where the gain divides by S. */
+static void test_core_update_matches_double(void)
+{
+    ts_rng_t r;
+    int trial;
+    ts_rng_seed(&r, 7);
+    for (trial = 0; trial < 200; ++trial) {
+        enum { N = 6 };
+        double A[N * N], Pd[N * N], xd[N], b[N], s, hv = 0.0, nu, rv;
+        ekf_scalar_t P[N * N], x[N], hval;
+        uint8_t idx;
+        ekf_hrow_t h;
+        int i, j, k;
+        double pivot;
+        /* random SPD P = A A^T + 1e-6 I, variances from 1e-6 to ~1 */
+        for (i = 0; i < N * N; ++i) {
+            A[i] = ts_uniform_in(&r, -1.0, 1.0) * ((i / N) % 2 == 0 ? 1.0 : 1e-2);
+        }
+        for (i = 0; i < N; ++i) {
+            for (j = 0; j < N; ++j) {
+                double acc = (i == j) ? 1e-6 : 0.0;
+                for (k = 0; k < N; ++k) {
+                    acc += A[i * N + k] * A[j * N + k];
+                }
+                P[i * N + j] = ekf_from_double(acc);
+            }
+            x[i] = ekf_from_double(ts_uniform_in(&r, -1.0, 1.0));
+        }
+        for (i = 0; i < N * N; ++i) {
+            Pd[i] = d(P[i]);
+        }
+        for (i = 0; i < N; ++i) {
+            xd[i] = d(x[i]);
+        }
+        idx = (uint8_t)(trial % N);
+        hval = ekf_from_double(ts_uniform_in(&r, 0.5, 2.0));
+        hv = d(hval);
+        h.idx = &idx;
+        h.value = &hval;
+        h.nnz = 1u;
+        nu = d(ekf_from_double(ts_uniform_in(&r, -0.1, 0.1)));
+        rv = d(ekf_from_double(1e-4));
+        TEST_ASSERT_EQUAL_INT(EKF_OK, ekf_update_scalar(x, P, N, &h, ekf_from_double(nu), ekf_from_double(rv), 0,
+                                                        EKF_C(1e-10), NULL));
+        /* double reference: P - b b^T / S */
+        for (i = 0; i < N; ++i) {
+            b[i] = Pd[i * N + idx] * hv;
+        }
+        s = hv * b[idx] + rv;
+        for (i = 0; i < N; ++i) {
+            xd[i] += b[i] / s * nu;
+            /* b and S carry about 1 LSB of rounding each, which K = b / S scales by 1 / S
+             * and |b| / S^2: absolute resolution, relative to a small S */
+            if (!(fabs(d(x[i]) - xd[i]) <= 4.0 * LSB * (1.0 + (1.0 + fabs(b[i]) / s) * fabs(nu) / s))) {
+                printf("trial %d x[%d]: fixed %.15g double %.15g s %.6g b %.6g nu %.6g\n", trial, i, d(x[i]), xd[i], s, b[i], nu);
+                TEST_FAIL();
+            }
+            for (j = 0; j < N; ++j) {
+                const double want = Pd[i * N + j] - b[i] * b[j] / s;
+                /* rounding of b, 1/S and K (each <= 1/2 LSB) carried through K b^T */
+                const double g = (1.0 + fabs(b[i]) + fabs(b[j])) * (1.0 + 1.0 / s);
+                const double tol = 4.0 * LSB * g * g;
+                if (!(fabs(d(P[i * N + j]) - want) <= tol)) {
+                    printf("trial %d P[%d][%d]: fixed %.15g double %.15g tolerance %.3g\n", trial, i, j,
+                           d(P[i * N + j]), want, tol);
+                    TEST_FAIL();
+                }
+            }
+        }
+        TEST_ASSERT_TRUE(ts_is_symmetric_exact(P, N));
+        TEST_ASSERT_TRUE(ts_is_positive_definite(P, N, &pivot));
+    }
+    TEST_ASSERT_EQUAL_UINT32(0u, ekf_scalar_saturations());
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    printf("Q format: Q%d.%d in int64 (resolution %.3e, range +-%.3e)\n", 63 - EKF_FX_FRAC, EKF_FX_FRAC, LSB,
+           9.223372036854775807e18 * LSB);
+    RUN_TEST(test_constants_and_conversions);
+    RUN_TEST(test_saturation_counted_and_propagated);
+    RUN_TEST(test_mul_correctly_rounded);
+    RUN_TEST(test_div_correctly_rounded);
+    RUN_TEST(test_sqrt_error_bound);
+    RUN_TEST(test_sin_cos_error_bound);
+    RUN_TEST(test_atan2_error_bound);
+    RUN_TEST(test_floor_and_wrap);
+    RUN_TEST(test_core_update_matches_double);
+    return UNITY_END();
+}
