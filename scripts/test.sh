@@ -20,6 +20,17 @@ echo "[test] Cortex-M builds under QEMU (scripts/test_target.sh)"
 echo "[test] pytest"
 "$ROOT/.venv/bin/python" -m pytest "$ROOT/tests/python" -q -ra || status=1
 
+# Reliability (docs/reliability.md): static analysis, the ctest under ASan + UBSan, valgrind on
+# the node, a short fuzz run of every target (scripts/fuzz.sh --time 3600 for a long one).
+echo "[test] static analysis: cppcheck + clang-tidy (scripts/static_analysis.sh)"
+"$ROOT/scripts/static_analysis.sh" || status=1
+echo "[test] ctest under ASan + UBSan (scripts/test_sanitizers.sh)"
+"$ROOT/scripts/test_sanitizers.sh" || status=1
+echo "[test] valgrind memcheck on attekf-node (scripts/test_valgrind.sh)"
+"$ROOT/scripts/test_valgrind.sh" || status=1
+echo "[test] fuzzing, 45 s per target (scripts/fuzz.sh)"
+"$ROOT/scripts/fuzz.sh" --time 45 || status=1
+
 if [ "$status" -ne 0 ]; then
   echo "[test] FAILED"
 else

@@ -341,7 +341,7 @@ void hal_can_rx_frame(hal_can_rx_t *rx, const hal_can_frame_t *frame)
         hal_count(&rx->counters[HAL_CNT_BAD_DLC]);
         return;
     }
-    bit = (kind == KIND_SYNC) ? (uint8_t)HAL_CAN_HAVE_SYNC : (uint8_t)(1u << kind);
+    bit = (uint8_t)((kind == KIND_SYNC) ? HAL_CAN_HAVE_SYNC : (1u << kind)); /* one cast: gcc -fsanitize */
 
     sl = find_slot(rx, d.seq);
     if (sl == NULL) {

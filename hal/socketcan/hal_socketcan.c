@@ -174,22 +174,36 @@ static void try_reopen(hal_socketcan_t *c, uint64_t now)
     }
 }
 
-/* One received frame into the buffer (timestamp mapped to the monotonic base). */
-static void take(hal_socketcan_t *c, const struct can_frame *cf, struct msghdr *msg,
-                 int64_t mono_minus_real)
+/* The control message has a payload of `size` bytes inside the control buffer. */
+static int cmsg_fits(const struct msghdr *msg, const struct cmsghdr *cm, size_t size)
+{
+    const unsigned char *end = (const unsigned char *)msg->msg_control + msg->msg_controllen;
+    return cm->cmsg_len >= CMSG_LEN(size) && (size_t)(end - CMSG_DATA(cm)) >= size;
+}
+
+/* One message as recvmmsg returned it into the frame buffer (timestamp mapped to the
+ * monotonic base). Everything in it is checked: this is the seam the fuzz target
+ * tests/fuzz/fuzz_socketcan.c feeds without a kernel socket. */
+int hal_socketcan_rx_msg(hal_socketcan_t *c, const struct can_frame *cf, size_t msg_len,
+                         struct msghdr *msg, int64_t mono_minus_real)
 {
     struct cmsghdr *cm;
     uint64_t ts_real_us = 0u;
     hal_can_frame_t *f;
+    if (msg_len != sizeof(*cf) || c->rx_n >= HAL_SOCKETCAN_BATCH) {
+        return 0; /* not a classic CAN frame (CAN FD is off), or no room (never: one batch) */
+    }
     for (cm = CMSG_FIRSTHDR(msg); cm != NULL; cm = CMSG_NXTHDR(msg, cm)) {
         if (cm->cmsg_level != SOL_SOCKET) {
             continue;
         }
-        if (cm->cmsg_type == SCM_TIMESTAMPNS) {
+        if (cm->cmsg_type == SCM_TIMESTAMPNS && cmsg_fits(msg, cm, sizeof(struct timespec))) {
             struct timespec ts;
             memcpy(&ts, CMSG_DATA(cm), sizeof(ts));
-            ts_real_us = (uint64_t)ts.tv_sec * 1000000u + (uint64_t)ts.tv_nsec / 1000u;
-        } else if (cm->cmsg_type == SO_RXQ_OVFL) {
+            if (ts.tv_sec >= 0 && ts.tv_nsec >= 0 && ts.tv_nsec < 1000000000L) {
+                ts_real_us = (uint64_t)ts.tv_sec * 1000000u + (uint64_t)ts.tv_nsec / 1000u;
+            }
+        } else if (cm->cmsg_type == SO_RXQ_OVFL && cmsg_fits(msg, cm, sizeof(uint32_t))) {
             /* Frames the kernel dropped on this socket so far (queue full). */
             uint32_t drops;
             memcpy(&drops, CMSG_DATA(cm), sizeof(drops));
@@ -202,18 +216,24 @@ static void take(hal_socketcan_t *c, const struct can_frame *cf, struct msghdr *
         }
     }
     if ((cf->can_id & (CAN_RTR_FLAG | CAN_ERR_FLAG)) != 0u) {
-        return; /* only data frames carry the protocol; error frames are not enabled */
+        return 0; /* only data frames carry the protocol; error frames are not enabled */
     }
     f = &c->rxbuf[(c->rx_head + c->rx_n) % HAL_SOCKETCAN_BATCH];
-    if (ts_real_us != 0u && (int64_t)ts_real_us + mono_minus_real > 0) {
-        f->t_us = (uint64_t)((int64_t)ts_real_us + mono_minus_real);
-    } else {
-        f->t_us = hal_socketcan_now_us(); /* no timestamp: now is the best estimate */
+    /* Unsigned arithmetic: a timestamp far from now must not overflow (it is then replaced). */
+    {
+        const uint64_t mono = ts_real_us + (uint64_t)mono_minus_real; /* mod 2^64 */
+        if (ts_real_us != 0u && mono != 0u && mono < ((uint64_t)1 << 62) &&
+            (mono_minus_real >= 0 ? mono >= ts_real_us : mono < ts_real_us)) {
+            f->t_us = mono;
+        } else {
+            f->t_us = hal_socketcan_now_us(); /* no usable timestamp: now is the best estimate */
+        }
     }
     f->id = (cf->can_id & CAN_EFF_FLAG) ? (cf->can_id & CAN_EFF_MASK) | 0x80000000u : cf->can_id & CAN_SFF_MASK;
     f->dlc = cf->can_dlc; /* > 8 is reported as a wrong length by the assembler */
     memcpy(f->data, cf->data, 8u);
     ++c->rx_n;
+    return 1;
 }
 
 /* Reads up to HAL_SOCKETCAN_BATCH queued frames with one recvmmsg call into the (empty)
@@ -259,9 +279,7 @@ static int fill(hal_socketcan_t *c)
         check_interface(c, hal_socketcan_now_us());
     }
     for (i = 0; i < n; ++i) {
-        if (mm[i].msg_len == sizeof(cf[i])) { /* else not a classic CAN frame (CAN FD is off) */
-            take(c, &cf[i], &mm[i].msg_hdr, mono_minus_real);
-        }
+        (void)hal_socketcan_rx_msg(c, &cf[i], mm[i].msg_len, &mm[i].msg_hdr, mono_minus_real);
     }
     return 0;
 }

@@ -16,6 +16,7 @@
 #ifndef HAL_SOCKETCAN_H
 #define HAL_SOCKETCAN_H
 
+#include <stddef.h>
 #include <stdint.h>
 
 #include "hal.h"
@@ -67,5 +68,16 @@ void hal_socketcan_bind(hal_socketcan_t *c, hal_t *hal);
 
 /* CLOCK_MONOTONIC, us: the time base of this backend (now_us, sample rx_us). */
 uint64_t hal_socketcan_now_us(void);
+
+/* The receive path below the socket (used by read_sample; public as the seam the fuzz
+ * target tests/fuzz/fuzz_socketcan.c feeds raw frames through, no kernel CAN needed): one
+ * message as recvmmsg returned it, msg_len bytes of *cf with msg's control messages
+ * (SCM_TIMESTAMPNS, SO_RXQ_OVFL), into the frame buffer read_sample assembles from.
+ * mono_minus_real: CLOCK_MONOTONIC - CLOCK_REALTIME, us. Returns 1 if a frame was
+ * buffered, 0 if the message was not a classic data frame (or the buffer is full). */
+struct can_frame;
+struct msghdr;
+int hal_socketcan_rx_msg(hal_socketcan_t *c, const struct can_frame *cf, size_t msg_len,
+                         struct msghdr *msg, int64_t mono_minus_real);
 
 #endif /* HAL_SOCKETCAN_H */

@@ -139,8 +139,10 @@ def frames_from_canlog(path: str, start: float = 0.0, stop: Optional[float] = No
             ids.append(int(m.arbitration_id))
             data.append(bytes(m.data))
             ext.append(bool(m.is_extended_id))
-    except (OSError, ValueError) as e:
-        raise ReplayError(f"{path}: cannot read as a CAN log: {e}") from e
+    except Exception as e:  # python-can's readers raise many types on corrupt logs
+        # (OSError, ValueError, struct.error, zlib.error, IndexError ...; found by fuzzing)
+        msg = " ".join(str(e).split()) or type(e).__name__
+        raise ReplayError(f"{path}: cannot read as a CAN log: {msg}") from e
     if not t:
         raise ReplayError(f"{path}: no CAN data frames in the log")
     ta = np.asarray(t)

@@ -1,0 +1,77 @@
+#!/usr/bin/env bash
+# Fuzzing (tests/fuzz/README.md, docs/reliability.md): builds the libFuzzer targets with
+# clang (ASan + UBSan, every finding fatal) and runs them, all at once, for a fixed time.
+#
+#   ./scripts/fuzz.sh                  every target, 60 s each (the test suite uses --time 45)
+#   ./scripts/fuzz.sh --time 3600      a long run (an hour per target)
+#   ./scripts/fuzz.sh --targets "fuzz_att_f fuzz_att_d" --time 600 --jobs 2
+#
+# Targets: fuzz_att_f, fuzz_att_d (estimator, float / double), fuzz_hal_can (CAN protocol +
+# node), fuzz_socketcan (SocketCAN receive path), fuzz_parsers (Python file parsers, atheris).
+# Default: all but fuzz_att_d. --jobs: libFuzzer worker processes per target (default 1).
+# Each target starts from its committed seeds (tests/fuzz/corpus/<target>) plus what earlier
+# runs found (build/fuzz/corpus/<target>, not committed). A crash, an invariant failure or
+# a sanitizer report fails the script and leaves the input in build/fuzz/artifacts/<target>/;
+# reproduce with: build/fuzz/<target> <that file>.
+set -uo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$ROOT"
+TIME=60
+TARGETS="fuzz_att_f fuzz_hal_can fuzz_socketcan fuzz_parsers"
+WORKERS=1
+while (($#)); do
+  case "$1" in
+    --time) TIME="$2"; shift 2 ;;
+    --targets) TARGETS="$2"; shift 2 ;;
+    --jobs) WORKERS="$2"; shift 2 ;;
+    -h|--help) sed -n '2,17p' "$0"; exit 0 ;;
+    *) echo "fuzz.sh: unknown option '$1' (see --help)" >&2; exit 2 ;;
+  esac
+done
+OUT="$ROOT/build/fuzz"
+log() { printf '[fuzz] %s\n' "$*"; }
+command -v clang >/dev/null || { echo "[fuzz] clang not installed (scripts/setup.sh installs it)" >&2; exit 1; }
+
+c_targets=()
+for t in $TARGETS; do [ "$t" = fuzz_parsers ] || c_targets+=("$t"); done
+if ((${#c_targets[@]})); then
+  t0=$SECONDS
+  cmake -S "$ROOT/tests/fuzz" -B "$OUT" -G Ninja -DCMAKE_C_COMPILER=clang >/dev/null || exit 1
+  cmake --build "$OUT" --target "${c_targets[@]}" >/dev/null || { echo "[fuzz] build failed" >&2; exit 1; }
+  log "built ${c_targets[*]} in $((SECONDS - t0)) s"
+fi
+
+pids=(); names=()
+for t in $TARGETS; do
+  seeds="$ROOT/tests/fuzz/corpus/${t%_[fd]}"
+  work="$OUT/corpus/$t"
+  art="$OUT/artifacts/$t/"
+  mkdir -p "$work" "$art"
+  opts=(-max_total_time="$TIME" -print_final_stats=1 -artifact_prefix="$art" -timeout=10 -rss_limit_mb=2048)
+  if [ "$WORKERS" -gt 1 ]; then opts+=(-fork="$WORKERS" -ignore_crashes=0); fi
+  if [ "$t" = fuzz_parsers ]; then
+    cmd=("$ROOT/.venv/bin/python" "$ROOT/tests/fuzz/fuzz_parsers.py")
+    opts+=(-max_len=4096)
+  else
+    cmd=("$OUT/$t")
+  fi
+  ( cd "$OUT" && exec "${cmd[@]}" "${opts[@]}" "$work" "$seeds" ) > "$OUT/$t.log" 2>&1 &
+  pids+=($!); names+=("$t")
+done
+log "running ${names[*]} for $TIME s"
+status=0
+for i in "${!pids[@]}"; do
+  t="${names[$i]}"
+  if wait "${pids[$i]}"; then rc=0; else rc=$?; fi
+  execs="$(grep -Eo 'stat::number_of_executed_units: [0-9]+' "$OUT/$t.log" | awk '{s += $2} END {print s + 0}')"
+  if [ "$execs" = 0 ]; then execs="$(grep -Eo '^Done [0-9]+ runs' "$OUT/$t.log" | awk '{s += $2} END {print s + 0}')"; fi
+  cov="$(grep -Eo 'cov: [0-9]+' "$OUT/$t.log" | tail -1)"
+  if [ "$rc" -ne 0 ]; then
+    status=1
+    log "$t: FAILED (exit $rc) after $execs executions; log $OUT/$t.log, input in $OUT/artifacts/$t/"
+    grep -E "invariant failed|runtime error|ERROR: |Uncaught Python exception|Error|error" "$OUT/$t.log" | head -5 >&2
+  else
+    log "$t: $execs executions, $cov, no findings"
+  fi
+done
+exit "$status"

@@ -1,0 +1,205 @@
+/*
+ * fuzz_att.c - libFuzzer target: the estimator (att_init / att_step, firmware/att) with
+ * arbitrary settings, sensor values, time steps and validity masks. Built for float
+ * (fuzz_att_f, what ships) and double (fuzz_att_d).
+ *
+ * Input: a settings block (each field kept at its default, scaled by a power of two, or
+ * replaced by an arbitrary value; att_init must accept or refuse it with
+ * EKF_ERR_SETTINGS), then samples (dt, gyro, accel, mag, valid), each value ordinary,
+ * extreme or non-finite (fuzz_common.h, fz_real).
+ *
+ * Invariants after every call: the status is one of ekf_status_t and equals the first
+ * non-OK stage of the report once aligned; state finite; once aligned P exactly symmetric
+ * and positive definite (Cholesky in double), angles in their ranges, diagonal >= the
+ * variance floor; a refused time step (NaN/Inf, <= 0, > dt_max) leaves x and P bit for
+ * bit unchanged; only defined flag bits; counters never decrease.
+ */
+#include "att.h"
+#include "fuzz_common.h"
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
+
+/* Every flag att.h defines: a bit outside is an undocumented flag (add new ones here). */
+#define FLAG_ALL                                                                                  \
+    (ATT_FLAG_ALIGNED | ATT_FLAG_GIMBAL_LOCK | ATT_FLAG_ACCEL_DEWEIGHTED | ATT_FLAG_ACCEL_REJECTED |   \
+     ATT_FLAG_MAG_DISTURBED | ATT_FLAG_HEADING_HELD | ATT_FLAG_GYRO_GATED | ATT_FLAG_ACCEL_GATED |     \
+     ATT_FLAG_MAG_GATED | ATT_FLAG_GATE_BYPASS | ATT_FLAG_HEADING_LIMITED | ATT_FLAG_REMAPPED |        \
+     ATT_FLAG_COV_REPAIRED | ATT_FLAG_AT_REST)
+
+static int pos_def(const ekf_scalar_t *P)
+{
+    double L[ATT_N][ATT_N];
+    int i, j, k;
+    for (i = 0; i < ATT_N; ++i) {
+        for (j = 0; j <= i; ++j) {
+            double sum = (double)P[i * ATT_N + j];
+            for (k = 0; k < j; ++k) {
+                sum -= L[i][k] * L[j][k];
+            }
+            if (i == j) {
+                if (!(sum > 0.0) || !isfinite(sum)) {
+                    return 0;
+                }
+                L[i][i] = sqrt(sum);
+            } else {
+                L[i][j] = sum / L[j][j];
+            }
+        }
+    }
+    return 1;
+}
+
+static ekf_scalar_t fuzz_setting(fz_t *z, ekf_scalar_t def)
+{
+    const uint8_t how = fz_u8(z);
+    if (how < 160u) {
+        return def;
+    }
+    if (how < 240u) { /* default times 2^-20 .. 2^19 (sign flipped sometimes) */
+        const double v = ldexp((double)def, (int)(how % 40u) - 20);
+        return (ekf_scalar_t)((how & 1u) && how > 235u ? -v : v);
+    }
+    return (ekf_scalar_t)fz_real(z, 10.0);
+}
+
+static void fuzz_settings(fz_t *z, att_settings_t *s)
+{
+    ekf_scalar_t *fields[] = {
+        &s->rate_walk, &s->angle_walk, &s->euler_rate_rel, &s->gyro_noise, &s->gyro_gate, &s->gyro_range,
+        &s->gravity, &s->accel_noise, &s->accel_band, &s->accel_reject, &s->accel_gate, &s->accel_range,
+        &s->mag_heading_noise, &s->mag_gate, &s->mag_norm_tol, &s->mag_dip_tol, &s->mag_ref_norm,
+        &s->mag_ref_dip, &s->mag_declination, &s->mag_range, &s->gate_timeout, &s->gimbal_limit,
+        &s->dt_max, &s->heading_var_max, &s->var_floor, &s->init_tilt_sigma, &s->init_heading_sigma,
+        &s->init_rate_sigma,
+    };
+    size_t i;
+    *s = att_default_settings;
+    if (fz_u8(z) < 64u) {
+        return; /* a quarter of the inputs run the defaults */
+    }
+    for (i = 0; i < sizeof(fields) / sizeof(fields[0]); ++i) {
+        *fields[i] = fuzz_setting(z, *fields[i]);
+    }
+    {
+        const uint8_t a = fz_u8(z);
+        if (a >= 200u) {
+            s->align_samples = (uint16_t)(a == 255u ? fz_u16(z) : a - 200u);
+        }
+    }
+}
+
+static void fuzz_vec(fz_t *z, ekf_scalar_t v[3], double scale)
+{
+    int i;
+    for (i = 0; i < 3; ++i) {
+        v[i] = (ekf_scalar_t)fz_real(z, scale);
+    }
+}
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
+{
+    static att_ekf_t f;
+    att_settings_t s;
+    fz_t z = {data, size};
+    ekf_status_t st;
+    att_diag_t prev;
+    int steps = 0;
+
+    fuzz_settings(&z, &s);
+    st = att_settings_check(&s);
+    FZ_CHECK(st == EKF_OK || st == EKF_ERR_SETTINGS, "settings_check %d", (int)st);
+    FZ_CHECK(att_init(&f, &s) == st, "att_init disagrees with att_settings_check");
+    if (st != EKF_OK) {
+        return 0;
+    }
+    memset(&prev, 0, sizeof(prev));
+    while (fz_more(&z) && steps++ < 4000) {
+        att_sample_t smp;
+        att_step_report_t rep;
+        ekf_scalar_t x0[ATT_N], P0[ATT_N * ATT_N];
+        const int was_aligned = (att_flags(&f) & ATT_FLAG_ALIGNED) != 0u;
+        const uint8_t dtk = fz_u8(&z);
+        const att_diag_t *d;
+        int i;
+
+        memset(&smp, 0, sizeof(smp));
+        if (dtk < 200u) { /* 0.1 ms .. ~2 s, log spaced */
+            smp.dt = (ekf_scalar_t)(1e-4 * pow(1.05, (double)dtk));
+        } else {
+            smp.dt = (ekf_scalar_t)fz_real(&z, 0.01);
+        }
+        smp.valid = fz_u8(&z);
+        if (smp.valid & 0x80u) { /* repeat the pattern with sensible values: move the filter */
+            const double tilt = (double)(int8_t)fz_u8(&z) / 40.0;
+            smp.gyro[0] = (ekf_scalar_t)((double)(int8_t)fz_u8(&z) / 20.0);
+            smp.gyro[1] = (ekf_scalar_t)((double)(int8_t)fz_u8(&z) / 20.0);
+            smp.gyro[2] = (ekf_scalar_t)((double)(int8_t)fz_u8(&z) / 20.0);
+            smp.accel[0] = (ekf_scalar_t)(-9.81 * sin(tilt));
+            smp.accel[1] = EKF_C(0.3);
+            smp.accel[2] = (ekf_scalar_t)(9.81 * cos(tilt));
+            smp.mag[0] = EKF_C(20);
+            smp.mag[1] = EKF_C(5);
+            smp.mag[2] = EKF_C(-40);
+        } else {
+            fuzz_vec(&z, smp.gyro, 5.0);
+            fuzz_vec(&z, smp.accel, 20.0);
+            fuzz_vec(&z, smp.mag, 60.0);
+        }
+        memcpy(x0, att_state(&f), sizeof(x0));
+        memcpy(P0, att_covariance(&f), sizeof(P0));
+
+        st = att_step(&f, &smp, &rep);
+        FZ_CHECK((unsigned)st <= (unsigned)EKF_SKIPPED, "status %d", (int)st);
+        FZ_CHECK((unsigned)rep.predict <= EKF_SKIPPED && (unsigned)rep.gyro <= EKF_SKIPPED &&
+                     (unsigned)rep.accel <= EKF_SKIPPED && (unsigned)rep.mag <= EKF_SKIPPED,
+                 "report");
+        FZ_CHECK(ekf_all_finite(att_state(&f), ATT_N), "non-finite state at step %d", steps);
+        FZ_CHECK((att_flags(&f) & ~FLAG_ALL) == 0u, "flags 0x%x: a bit att.h does not define (new flag? add it to FLAG_ALL)",
+                 (unsigned)att_flags(&f));
+        if (was_aligned) {
+            const ekf_status_t first = rep.predict != EKF_OK ? rep.predict
+                                       : rep.gyro != EKF_OK  ? rep.gyro
+                                       : rep.accel != EKF_OK ? rep.accel
+                                                             : rep.mag;
+            FZ_CHECK(st == first, "status %d, first stage %d", (int)st, (int)first);
+            if (st == EKF_ERR_NOT_FINITE || st == EKF_ERR_DT_NONPOSITIVE || st == EKF_ERR_DT_TOO_LARGE) {
+                if (rep.predict == st && rep.gyro == EKF_OK && rep.accel == EKF_OK && rep.mag == EKF_OK) {
+                    FZ_CHECK(memcmp(x0, att_state(&f), sizeof(x0)) == 0 &&
+                                 memcmp(P0, att_covariance(&f), sizeof(P0)) == 0,
+                             "refused time step changed the filter");
+                }
+            }
+        }
+        if (att_flags(&f) & ATT_FLAG_ALIGNED) {
+            const ekf_scalar_t *x = att_state(&f);
+            const ekf_scalar_t *P = att_covariance(&f);
+            int j;
+            for (i = 0; i < ATT_N; ++i) {
+                for (j = 0; j < i; ++j) {
+                    FZ_CHECK(memcmp(&P[i * ATT_N + j], &P[j * ATT_N + i], sizeof(P[0])) == 0,
+                             "P not symmetric at (%d,%d) step %d", i, j, steps);
+                }
+                FZ_CHECK(P[i * ATT_N + i] >= s.var_floor, "P[%d][%d] = %g below the floor", i, i,
+                         (double)P[i * ATT_N + i]);
+            }
+            FZ_CHECK(pos_def(P), "P not positive definite at step %d", steps);
+            FZ_CHECK(x[ATT_PHI] >= -EKF_PI && x[ATT_PHI] < EKF_PI && x[ATT_PSI] >= -EKF_PI && x[ATT_PSI] < EKF_PI &&
+                         x[ATT_THETA] >= -EKF_HALF_PI && x[ATT_THETA] <= EKF_HALF_PI,
+                     "angles out of range: %g %g %g", (double)x[ATT_PHI], (double)x[ATT_THETA], (double)x[ATT_PSI]);
+        }
+        d = att_diag(&f);
+        FZ_CHECK(d->steps >= prev.steps && d->gyro_fused >= prev.gyro_fused && d->accel_fused >= prev.accel_fused &&
+                     d->mag_fused >= prev.mag_fused && d->gyro_gated >= prev.gyro_gated &&
+                     d->accel_gated >= prev.accel_gated && d->mag_gated >= prev.mag_gated &&
+                     d->accel_skipped >= prev.accel_skipped && d->mag_skipped >= prev.mag_skipped &&
+                     d->rejected >= prev.rejected && d->numeric >= prev.numeric && d->remaps >= prev.remaps &&
+                     d->cov_repairs >= prev.cov_repairs,
+                 "a counter decreased");
+        FZ_CHECK(d->gyro_fused + d->gyro_gated - prev.gyro_fused - prev.gyro_gated <= 3u, "gyro updates");
+        if (st != EKF_OK && st != EKF_GATED && st != EKF_SKIPPED && st != EKF_ERR_NUMERIC) {
+            FZ_CHECK(d->rejected > prev.rejected, "refusal %d not counted", (int)st);
+        }
+        prev = *d;
+    }
+    return 0;
+}
