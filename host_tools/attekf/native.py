@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import ctypes
 import os
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Dict, List, Optional, Union
@@ -26,7 +27,7 @@ import numpy as np
 from .io import Recording
 
 API_VERSION = 1
-SCALARS = {"float": "f", "double": "d"}
+SCALARS = {"float": "f", "double": "d", "fixed": "x"}  # fixed: Q-format (docs/fixed_point.md)
 
 # Columns of the per-sample status array (attekf_native.h, ATTEKF_STATUS_*).
 STATUS_COLUMNS = ("step", "predict", "gyro", "accel", "mag")
@@ -256,6 +257,8 @@ class Result:
     settings the settings used, by name; scalar: "float" or "double"
     status_names code -> name of every code that occurs in status
     mag_absent samples given without magnetometer (no magnetometer, or an all-NaN row)
+    c_seconds  CPU time (process) spent inside the C calls (attekf_run), s: the estimator's
+               own cost without Python set-up (`attekf bench` per-sample cost)
     """
 
     t: np.ndarray
@@ -269,6 +272,7 @@ class Result:
     scalar: str
     status_names: Dict[int, str] = field(default_factory=dict)
     mag_absent: int = 0
+    c_seconds: float = 0.0  # CPU time inside the attekf_run calls (the C loop), s
 
     def __len__(self) -> int:
         return int(self.t.shape[0])
@@ -350,12 +354,15 @@ def run_arrays(t: np.ndarray, gyr: np.ndarray, acc: np.ndarray, mag: Optional[np
         # rows from 'start' of a C-contiguous array; the view keeps the array alive
         return None if a is None else a[start:].ctypes.data_as(typ)
 
+    c_seconds = 0.0
     for start in range(0, n, BLOCK):
         stop = min(n, start + BLOCK)
+        t0 = time.process_time()
         rc = lib.lib.attekf_run(
             fbuf, stop - start, ptr(dt, _dp, start), ptr(gyr, _dp, start), ptr(acc, _dp, start),
             ptr(mag, _dp, start), ptr(state, _dp, start), ptr(var, _dp, start),
             ptr(quat, _dp, start), ptr(flags, _u32p, start), ptr(status, _u8p, start))
+        c_seconds += time.process_time() - t0
         if rc != 0:
             raise NativeError(f"attekf_run: {lib.status_name(rc)}")
         if progress is not None:
@@ -368,7 +375,7 @@ def run_arrays(t: np.ndarray, gyr: np.ndarray, acc: np.ndarray, mag: Optional[np
                   diag={name: int(v) for name, v in zip(lib.diag_names, counters)},
                   settings=_settings_to_dict(lib, sbuf), scalar=scalar,
                   status_names={int(c): lib.status_name(int(c)) for c in codes},
-                  mag_absent=mag_absent)
+                  mag_absent=mag_absent, c_seconds=c_seconds)
 
 
 def run_estimator(recording: Recording, settings: Optional[Dict[str, float]] = None,

@@ -28,7 +28,7 @@ def _vectors(scalar: str, tmp_path):
     return inp, outputs
 
 
-@pytest.mark.parametrize("scalar", ["float", "double"])
+@pytest.mark.parametrize("scalar", ["float", "double", "fixed"])
 def test_binding_reproduces_c_vectors_bit_for_bit(scalar, tmp_path):
     inp, outputs = _vectors(scalar, tmp_path)
     t, gyr, acc, mag = inp[:, 0], inp[:, 2:5], inp[:, 5:8], inp[:, 8:11]

@@ -46,8 +46,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "(one recording only; format in docs/host_tools.md)")
     p.add_argument("--time-offset", type=float, default=0.0, metavar="S",
                    help="added to the output file's t_s before matching it to samples (default 0)")
-    p.add_argument("--scalar", choices=("float", "double"), default="float",
-                   help="which C build runs: float (what ships, default) or double")
+    p.add_argument("--scalar", choices=("float", "double", "fixed"), default="float",
+                   help="which C build runs: float (what ships, default), double, or fixed "
+                        "(Q-format fixed point, docs/fixed_point.md)")
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                    help="change an estimator setting (repeatable; see --list-settings)")
     p.add_argument("--settings", metavar="FILE.json", help="estimator settings from a JSON object {name: value}")
