@@ -22,21 +22,6 @@
 void setUp(void) {}
 void tearDown(void) {}
 
-static void random_direction(ts_rng_t *r, double norm, ekf_scalar_t out[3])
-{
-    double v[3], n;
-    int i;
-    do {
-        for (i = 0; i < 3; ++i) {
-            v[i] = ts_uniform_in(r, -1.0, 1.0);
-        }
-        n = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-    } while (n < 1e-3 || n > 1.0);
-    for (i = 0; i < 3; ++i) {
-        out[i] = ekf_from_double(v[i] / n * norm);
-    }
-}
-
 static void maybe_corrupt(ts_rng_t *r, ekf_scalar_t v[3])
 {
     if (ts_uniform(r) < 0.01) {
@@ -74,8 +59,8 @@ static void test_random_inputs_keep_covariance_valid(void)
         for (i = 0; i < 3; ++i) {
             smp.gyro[i] = ekf_from_double(ts_uniform_in(&r, -1.05 * ekf_to_double(s->gyro_range), 1.05 * ekf_to_double(s->gyro_range)));
         }
-        random_direction(&r, ts_uniform_in(&r, 0.0, 3.0 * ekf_to_double(s->gravity)), smp.accel);
-        random_direction(&r, ts_uniform_in(&r, 0.0, 100.0), smp.mag);
+        ts_random_direction(&r, ts_uniform_in(&r, 0.0, 3.0 * ekf_to_double(s->gravity)), smp.accel);
+        ts_random_direction(&r, ts_uniform_in(&r, 0.0, 100.0), smp.mag);
         maybe_corrupt(&r, smp.gyro);
         maybe_corrupt(&r, smp.accel);
         maybe_corrupt(&r, smp.mag);

@@ -28,21 +28,6 @@
 void setUp(void) {}
 void tearDown(void) {}
 
-static void random_direction(ts_rng_t *r, double norm, ekf_scalar_t out[3])
-{
-    double v[3], n;
-    int i;
-    do {
-        for (i = 0; i < 3; ++i) {
-            v[i] = ts_uniform_in(r, -1.0, 1.0);
-        }
-        n = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-    } while (n < 1e-3 || n > 1.0);
-    for (i = 0; i < 3; ++i) {
-        out[i] = ekf_from_double(v[i] / n * norm);
-    }
-}
-
 static void test_envelope_never_saturates(void)
 {
     att_ekf_t f;
@@ -64,8 +49,8 @@ static void test_envelope_never_saturates(void)
         for (i = 0; i < 3; ++i) {
             smp.gyro[i] = ekf_from_double(ts_uniform_in(&r, -40.0, 40.0));
         }
-        random_direction(&r, ts_uniform_in(&r, 0.0, 3.0 * 9.81), smp.accel);
-        random_direction(&r, ts_uniform_in(&r, 1.0, 100.0), smp.mag);
+        ts_random_direction(&r, ts_uniform_in(&r, 0.0, 3.0 * 9.81), smp.accel);
+        ts_random_direction(&r, ts_uniform_in(&r, 1.0, 100.0), smp.mag);
         smp.valid = ATT_HAS_GYRO | ATT_HAS_ACCEL | ATT_HAS_MAG;
         st = att_step(&f, &smp, NULL);
         if (st == EKF_OK) {

@@ -31,6 +31,21 @@ double ts_uniform_in(ts_rng_t *r, double lo, double hi)
     return lo + (hi - lo) * ts_uniform(r);
 }
 
+void ts_random_direction(ts_rng_t *r, double norm, ekf_scalar_t out[3])
+{
+    double v[3], n;
+    int i;
+    do {
+        for (i = 0; i < 3; ++i) {
+            v[i] = ts_uniform_in(r, -1.0, 1.0);
+        }
+        n = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    } while (n < 1e-3 || n > 1.0);
+    for (i = 0; i < 3; ++i) {
+        out[i] = ekf_from_double(v[i] / n * norm);
+    }
+}
+
 double ts_gauss(ts_rng_t *r)
 {
     double u1 = ts_uniform(r), u2 = ts_uniform(r);

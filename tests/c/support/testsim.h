@@ -19,6 +19,8 @@ typedef struct {
 void ts_rng_seed(ts_rng_t *r, uint64_t seed);
 double ts_uniform(ts_rng_t *r);             /* [0, 1) */
 double ts_uniform_in(ts_rng_t *r, double lo, double hi);
+/* A uniformly random direction (rejection sampling in the unit ball) of length norm. */
+void ts_random_direction(ts_rng_t *r, double norm, ekf_scalar_t out[3]);
 double ts_gauss(ts_rng_t *r);               /* N(0, 1) */
 
 /* Rotation matrices (row-major 3x3), body to ENU. */
