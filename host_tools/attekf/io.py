@@ -20,6 +20,7 @@ angles ZYX (roll, pitch, yaw) of the same rotation.
 from __future__ import annotations
 
 import csv
+import json
 import math
 import os
 from dataclasses import dataclass, field
@@ -148,6 +149,21 @@ class EstimatorOutput:
 # ---------------------------------------------------------------------------------------------
 # Reading recordings
 # ---------------------------------------------------------------------------------------------
+def read_settings_json(path: str) -> dict:
+    """A JSON object {setting name: value} from a file (estimator settings for the
+    commands' --settings); InputError with a one-line reason otherwise."""
+    try:
+        with open(path, encoding="utf-8") as fh:
+            data = json.load(fh)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{path}: line {exc.lineno}: invalid JSON: {exc.msg}") from None
+    if not isinstance(data, dict):
+        raise InputError(f"{path}: expected a JSON object {{name: value}}")
+    return data
+
+
 def read_recording(path: str, check_units: bool = True,
                    progress: Optional[Callable[[int], None]] = None) -> Recording:
     """Reads a recording; the format follows the extension (.csv, .hdf5/.h5).

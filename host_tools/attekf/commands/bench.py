@@ -11,7 +11,7 @@ import sys
 from typing import Dict
 
 from .. import __version__
-from ..io import InputError
+from ..io import InputError, read_settings_json
 
 NAME = "bench"
 HELP = "benchmark the estimator against VQF, Fusion, Madgwick, Mahony on BROAD (table, JSON, plot)"
@@ -104,16 +104,7 @@ def _parse_settings(args) -> Dict[str, float]:
     out: Dict[str, float] = {}
     for item in args.settings:
         if "=" not in item and item.endswith(".json"):
-            try:
-                with open(item, encoding="utf-8") as fh:
-                    data = json.load(fh)
-            except OSError as exc:
-                raise InputError(f"{item}: cannot read: {exc.strerror or exc}") from None
-            except json.JSONDecodeError as exc:
-                raise InputError(f"{item}: line {exc.lineno}: invalid JSON: {exc.msg}") from None
-            if not isinstance(data, dict):
-                raise InputError(f"{item}: expected a JSON object {{name: value}}")
-            out.update({str(k): float(v) for k, v in data.items()})
+            out.update({str(k): float(v) for k, v in read_settings_json(item).items()})
         else:
             k, v = _parse_pair(item, "--settings")
             out[k] = v

@@ -11,7 +11,7 @@ import sys
 from typing import Dict, List
 
 from .. import __version__
-from ..io import InputError, read_output_csv, read_recording, write_output_csv
+from ..io import InputError, read_output_csv, read_recording, read_settings_json, write_output_csv
 
 NAME = "eval"
 HELP = "evaluate the estimator against ground truth (table, JSON, plots)"
@@ -87,16 +87,7 @@ def _collect(inputs: List[str]) -> List[str]:
 def _parse_settings(args) -> Dict[str, float]:
     settings: Dict[str, float] = {}
     if args.settings:
-        try:
-            with open(args.settings, encoding="utf-8") as fh:
-                data = json.load(fh)
-        except OSError as exc:
-            raise InputError(f"{args.settings}: cannot read: {exc.strerror or exc}") from None
-        except json.JSONDecodeError as exc:
-            raise InputError(f"{args.settings}: line {exc.lineno}: invalid JSON: {exc.msg}") from None
-        if not isinstance(data, dict):
-            raise InputError(f"{args.settings}: expected a JSON object {{name: value}}")
-        settings.update(data)
+        settings.update(read_settings_json(args.settings))
     for item in args.set:
         name, sep, value = item.partition("=")
         if not sep or not name.strip():
