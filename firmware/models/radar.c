@@ -261,6 +261,27 @@ static void count_components(radar_ekf_t *f, const radar_report_t *rep, int comp
     }
 }
 
+/* What both updates check first: arguments, initialisation, a finite measurement of nz
+ * components; the report starts as "skipped". */
+static ekf_status_t begin_update(radar_ekf_t *f, const ekf_scalar_t *z, uint8_t nz, radar_report_t *rep)
+{
+    int m;
+    if (f == NULL || z == NULL) {
+        return EKF_ERR_NULL;
+    }
+    if (!f->initialised) {
+        return EKF_ERR_NOT_INITIALISED;
+    }
+    for (m = 0; m < RADAR_M; ++m) {
+        rep->status[m] = EKF_SKIPPED;
+        rep->innov[m].innovation = rep->innov[m].variance = rep->innov[m].test_ratio = EKF_C(0);
+    }
+    if (!ekf_all_finite(z, nz)) {
+        return reject(f, EKF_ERR_NOT_FINITE);
+    }
+    return EKF_OK;
+}
+
 ekf_status_t radar_update_radar(radar_ekf_t *f, const ekf_scalar_t z[RADAR_M], radar_report_t *rep)
 {
     radar_report_t local;
@@ -269,21 +290,12 @@ ekf_status_t radar_update_radar(radar_ekf_t *f, const ekf_scalar_t z[RADAR_M], r
     ekf_status_t st, result = EKF_OK;
     int m, k;
 
-    if (f == NULL || z == NULL) {
-        return EKF_ERR_NULL;
-    }
-    if (!f->initialised) {
-        return EKF_ERR_NOT_INITIALISED;
-    }
     if (rep == NULL) {
         rep = &local;
     }
-    for (m = 0; m < RADAR_M; ++m) {
-        rep->status[m] = EKF_SKIPPED;
-        rep->innov[m].innovation = rep->innov[m].variance = rep->innov[m].test_ratio = EKF_C(0);
-    }
-    if (!ekf_all_finite(z, RADAR_M)) {
-        return reject(f, EKF_ERR_NOT_FINITE);
+    st = begin_update(f, z, RADAR_M, rep);
+    if (st != EKF_OK) {
+        return st;
     }
     if (z[RADAR_RHO] < EKF_C(0)) {
         return reject(f, EKF_ERR_RANGE);
@@ -332,21 +344,12 @@ ekf_status_t radar_update_lidar(radar_ekf_t *f, const ekf_scalar_t z[2], radar_r
     ekf_status_t st, result = EKF_OK;
     int m;
 
-    if (f == NULL || z == NULL) {
-        return EKF_ERR_NULL;
-    }
-    if (!f->initialised) {
-        return EKF_ERR_NOT_INITIALISED;
-    }
     if (rep == NULL) {
         rep = &local;
     }
-    for (m = 0; m < RADAR_M; ++m) {
-        rep->status[m] = EKF_SKIPPED;
-        rep->innov[m].innovation = rep->innov[m].variance = rep->innov[m].test_ratio = EKF_C(0);
-    }
-    if (!ekf_all_finite(z, 2)) {
-        return reject(f, EKF_ERR_NOT_FINITE);
+    st = begin_update(f, z, 2, rep);
+    if (st != EKF_OK) {
+        return st;
     }
     save(f, &snap);
     /* H = [I 0]: linear, so sequential scalar updates are exact */
