@@ -247,6 +247,16 @@ static void update_gimbal_flag(att_ekf_t *f)
     }
 }
 
+/* The magnetic reference (norm in mag units, dip in rad) and tan^2(dip), which scales the
+ * tilt error into the heading ("Magnetometer" in docs/derivation.md): computed here, once
+ * per reference, not per sample (|dip| is capped at 84 deg, cos >= 0.1). */
+static void set_mag_reference(att_ekf_t *f, ekf_scalar_t norm, ekf_scalar_t dip)
+{
+    f->mag_ref_norm = norm;
+    f->mag_ref_dip = dip;
+    f->mag_tan2_dip = ekf_sq(ekf_div(ekf_sin(dip), ekf_max(ekf_cos(dip), EKF_C(0.1))));
+}
+
 ekf_status_t att_align(att_ekf_t *f, const ekf_scalar_t accel[3], const ekf_scalar_t mag[3])
 {
     const att_settings_t *s;
@@ -308,14 +318,11 @@ ekf_status_t att_align(att_ekf_t *f, const ekf_scalar_t accel[3], const ekf_scal
     }
 
     if (s->mag_ref_norm > EKF_C(0)) {
-        f->mag_ref_norm = s->mag_ref_norm;
-        f->mag_ref_dip = s->mag_ref_dip;
+        set_mag_reference(f, s->mag_ref_norm, s->mag_ref_dip);
     } else if (use_mag) {
-        f->mag_ref_norm = norm3(mag);
-        f->mag_ref_dip = mag_dip(lev);
+        set_mag_reference(f, norm3(mag), mag_dip(lev));
     } else {
-        f->mag_ref_norm = EKF_C(0);
-        f->mag_ref_dip = EKF_C(0);
+        set_mag_reference(f, EKF_C(0), EKF_C(0));
     }
     for (i = 0; i < 3; ++i) {
         f->gated_time[i] = EKF_C(0);
@@ -580,7 +587,7 @@ static ekf_status_t stage_gyro(att_ekf_t *f, const ekf_scalar_t gyro[3])
 static ekf_status_t stage_accel(att_ekf_t *f, const ekf_scalar_t accel[3])
 {
     const att_settings_t *s;
-    ekf_scalar_t norm, err, r_var, gate, phi0, theta0;
+    ekf_scalar_t norm, a_norm, err, r_var, gate, phi0, theta0;
     ekf_scalar_t a[3], h[3], hj[6];
     att_trig_t t;
     ekf_status_t st;
@@ -603,15 +610,25 @@ static ekf_status_t stage_accel(att_ekf_t *f, const ekf_scalar_t accel[3])
     err = ekf_abs(ekf_sub(norm, s->gravity));
     f->diag.accel_norm_error = err;
     f->flags &= ~(ATT_FLAG_ACCEL_DEWEIGHTED | ATT_FLAG_ACCEL_REJECTED | ATT_FLAG_ACCEL_GATED);
+    /* a: what is fused, the low-passed force when the low-pass is on (every sample enters
+     * it, fused or not), else the sample */
     if (s->accel_lpf_tau > EKF_C(0)) {
-        accel_lp_blend(f, accel); /* every sample, fused or not */
+        accel_lp_blend(f, accel);
+        for (i = 0; i < 3; ++i) {
+            a[i] = f->accel_lp[i];
+        }
+        a_norm = norm3(a);
+    } else {
+        for (i = 0; i < 3; ++i) {
+            a[i] = accel[i];
+        }
+        a_norm = norm;
     }
     if (s->accel_adapt_tau > EKF_C(0)) {
-        /* running mean over accel_adapt_tau of the squared norm error of what is fused (the
-         * low-passed force when the low-pass is on): how much linear acceleration is left
-         * in it lately, whatever this one sample's norm happens to be */
+        /* running mean over accel_adapt_tau of the squared norm error of a: how much linear
+         * acceleration is left in it lately, whatever this one sample's norm happens to be */
         const ekf_scalar_t k = ekf_div(f->last_dt, ekf_add(s->accel_adapt_tau, f->last_dt));
-        const ekf_scalar_t e = (s->accel_lpf_tau > EKF_C(0)) ? ekf_sub(norm3(f->accel_lp), s->gravity) : err;
+        const ekf_scalar_t e = ekf_sub(a_norm, s->gravity);
         f->accel_dev_var = ekf_mac(f->accel_dev_var, k, ekf_sub(ekf_sq(e), f->accel_dev_var));
     }
     if (err > s->accel_reject || !(norm > EKF_C(0))) {
@@ -635,22 +652,14 @@ static ekf_status_t stage_accel(att_ekf_t *f, const ekf_scalar_t accel[3])
         }
     }
     gate = gate_for(f, SENSOR_ACCEL, s->accel_gate);
-    if (s->accel_lpf_tau > EKF_C(0)) {
-        for (i = 0; i < 3; ++i) {
-            a[i] = f->accel_lp[i];
-        }
-        norm = norm3(a);
-        if (!(norm > EKF_C(0))) {
-            /* the shaking averaged to no force at all: no direction to fuse */
-            f->flags |= ATT_FLAG_ACCEL_REJECTED;
-            count(&f->diag.accel_skipped);
-            return EKF_SKIPPED;
-        }
-    } else {
-        for (i = 0; i < 3; ++i) {
-            a[i] = accel[i];
-        }
+    if (!(a_norm > EKF_C(0))) {
+        /* the shaking averaged to no force at all: no direction to fuse (the raw sample's
+         * zero norm was rejected above) */
+        f->flags |= ATT_FLAG_ACCEL_REJECTED;
+        count(&f->diag.accel_skipped);
+        return EKF_SKIPPED;
     }
+    norm = a_norm;
 
     /* h and H at the prior; the three components are fused sequentially with innovations
      * relinearised about the prior, which equals the batch update of the 3-vector
@@ -747,8 +756,7 @@ static ekf_status_t stage_mag(att_ekf_t *f, const ekf_scalar_t mag[3])
     if (!(f->mag_ref_norm > EKF_C(0))) {
         /* aligned without a magnetometer: the first field sample sets the reference and
          * the heading */
-        f->mag_ref_norm = norm;
-        f->mag_ref_dip = mag_dip(lev);
+        set_mag_reference(f, norm, mag_dip(lev));
         reset_heading(f, heading, ekf_min(ekf_sq(s->init_heading_sigma), s->heading_var_max));
         f->flags &= ~ATT_FLAG_HEADING_LIMITED;
         count(&f->diag.mag_fused);
@@ -779,11 +787,7 @@ static ekf_status_t stage_mag(att_ekf_t *f, const ekf_scalar_t mag[3])
      * running variance accel_dev_var, m/s^2 squared, is a tilt variance of
      * accel_dev_var / g^2), the heading is trusted that much less (docs/derivation.md,
      * "Magnetometer"). */
-    {
-        const ekf_scalar_t tan_dip = ekf_div(ekf_sin(f->mag_ref_dip), ekf_max(ekf_cos(f->mag_ref_dip), EKF_C(0.1)));
-        r_var = ekf_mac(ekf_sq(s->mag_heading_noise), ekf_sq(tan_dip),
-                        ekf_div(f->accel_dev_var, ekf_sq(s->gravity)));
-    }
+    r_var = ekf_mac(ekf_sq(s->mag_heading_noise), f->mag_tan2_dip, ekf_div(f->accel_dev_var, ekf_sq(s->gravity)));
     st = ekf_update_scalar(f->x, f->P, ATT_N, &hr, nu, r_var, gate_for(f, SENSOR_MAG, s->mag_gate),
                            s->var_floor, &info);
     f->diag.mag_ratio = info.test_ratio;

@@ -140,6 +140,7 @@ typedef struct {
     att_settings_t settings;
     ekf_scalar_t mag_ref_norm;  /* in use (set or learned) */
     ekf_scalar_t mag_ref_dip;
+    ekf_scalar_t mag_tan2_dip;  /* tan^2 of mag_ref_dip (set with the reference) */
     ekf_scalar_t align_acc[3];  /* sums during alignment */
     ekf_scalar_t align_mag[3];
     uint16_t align_count;
