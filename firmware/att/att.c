@@ -316,6 +316,9 @@ ekf_status_t att_align(att_ekf_t *f, const ekf_scalar_t accel[3], const ekf_scal
     for (i = ATT_PHID; i <= ATT_PSID; ++i) {
         f->P[i * ATT_N + i] = ekf_mac(f->P[i * ATT_N + i], f->P[i * ATT_N + i], s->euler_rate_rel);
     }
+    /* atan2 can return +pi itself (a = (0, +0, -g), upside down): into [-pi, pi) like after
+     * every other stage (found by fuzzing) */
+    (void)att_model_normalise(f->x, f->P);
 
     if (s->mag_ref_norm > EKF_C(0)) {
         set_mag_reference(f, s->mag_ref_norm, s->mag_ref_dip);

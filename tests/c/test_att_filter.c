@@ -307,6 +307,22 @@ static void test_linear_acceleration_and_mag_disturbance_flags(void)
     TEST_ASSERT_TRUE(att_diag(&f)->mag_skipped >= 1u);
 }
 
+/* Upside down, atan2(+0, -g) is +pi itself: the alignment must still put roll in
+ * [-pi, pi) like every other stage (a fuzzing finding). */
+static void test_align_upside_down_roll_in_range(void)
+{
+    static const ekf_scalar_t acc[3] = {EKF_C(0), EKF_C(0), EKF_C(-9.81)};
+    static const ekf_scalar_t mag[3] = {EKF_C(0), EKF_C(-20), EKF_C(40)};
+    att_ekf_t f;
+    ekf_scalar_t e[3];
+    init_default(&f);
+    TEST_ASSERT_EQUAL_INT(EKF_OK, att_align(&f, acc, mag));
+    att_get_euler(&f, e);
+    TEST_ASSERT_TRUE(e[0] >= -EKF_PI && e[0] < EKF_PI);
+    TEST_ASSERT_TRUE(ekf_abs(ekf_abs(e[0]) - EKF_PI) < EKF_C(1e-6)); /* still upside down */
+    TEST_ASSERT_TRUE(e[2] >= -EKF_PI && e[2] < EKF_PI);
+}
+
 /* ----- bad input ----- */
 
 typedef struct {
@@ -483,6 +499,7 @@ int main(void)
     RUN_TEST(test_remap_is_same_rotation);
     RUN_TEST(test_heading_capped_without_magnetometer);
     RUN_TEST(test_linear_acceleration_and_mag_disturbance_flags);
+    RUN_TEST(test_align_upside_down_roll_in_range);
     RUN_TEST(test_bad_settings_rejected);
     RUN_TEST(test_not_initialised);
     RUN_TEST(test_every_bad_input_class_leaves_state_unchanged);
