@@ -39,14 +39,20 @@ const att_settings_t att_default_settings = {
     .mag_gate = EKF_C(3.0),
     .mag_norm_tol = EKF_C(0.15),
     .mag_dip_tol = EKF_C(0.17),
-    .mag_reset_time = EKF_C(10.0),
+    .mag_reset_time = EKF_C(3.0),
     .mag_ref_norm = EKF_C(0.0),
     .mag_ref_dip = EKF_C(0.0),
     .mag_declination = EKF_C(0.0),
     .mag_range = EKF_C(5000.0),
     /* robustness */
     .gate_timeout = EKF_C(1.0),
+#if defined(EKF_SCALAR_FIXED)
+    /* 85 deg: within it the Q29.34 format never saturates (Euler-rate Jacobian ~ sec^2;
+     * docs/fixed_point.md, "Operating envelope") */
+    .gimbal_limit = EKF_C(1.4835298641951802),
+#else
     .gimbal_limit = EKF_C(1.55), /* 88.8 deg */
+#endif
     .dt_max = EKF_C(0.5),
     .heading_var_max = EKF_C(9.869604401089358), /* pi^2 */
     .var_floor = EKF_C(1e-10),
@@ -111,7 +117,8 @@ ekf_status_t att_settings_check(const att_settings_t *s)
         !in_range(s->mag_declination, ekf_neg(EKF_PI), EKF_PI) || !in_range(s->mag_range, EKF_C(1e-6), big) ||
         !in_range(s->gate_timeout, EKF_C(0), big) ||
         !in_range(s->gimbal_limit, EKF_C(0.1), EKF_C(1.5697963267948966)) || /* pi/2 - 1 mrad */
-        !in_range(s->dt_max, EKF_C(1e-6), EKF_C(60)) || !in_range(s->heading_var_max, EKF_C(1e-6), big) ||
+        !in_range(s->dt_max, EKF_C(1e-6), EKF_C(60)) ||
+        !in_range(s->heading_var_max, ekf_max(EKF_C(1e-6), s->var_floor), big) || /* a cap below the floor */
         !in_range(s->var_floor, EKF_C(1e-30), EKF_C(1e-2)) ||
         !in_range(s->init_tilt_sigma, EKF_C(1e-6), EKF_PI) ||
         !in_range(s->init_heading_sigma, EKF_C(1e-6), EKF_TWO_PI) ||
@@ -191,25 +198,24 @@ static void meas_trig(const att_ekf_t *f, att_trig_t *t)
     t->secth = EKF_C(0);
 }
 
-/* P += var * G G^T for the body-rate noise input, G = [I; 0; g] with g the 3x3 Euler-rate
- * block (row-major). Symmetric by construction. */
-static void add_rate_noise(ekf_scalar_t P[ATT_N * ATT_N], const ekf_scalar_t g[9], ekf_scalar_t var)
+/* P += G diag(var) G^T for the body-rate noise input (var per body axis), G = [I; 0; g]
+ * with g the 3x3 Euler-rate block (row-major). Symmetric by construction. */
+static void add_rate_noise(ekf_scalar_t P[ATT_N * ATT_N], const ekf_scalar_t g[9], const ekf_scalar_t var[3])
 {
     int i, j, k;
     for (i = 0; i < 3; ++i) {
-        P[(ATT_P + i) * ATT_N + ATT_P + i] = ekf_add(P[(ATT_P + i) * ATT_N + ATT_P + i], var);
+        P[(ATT_P + i) * ATT_N + ATT_P + i] = ekf_add(P[(ATT_P + i) * ATT_N + ATT_P + i], var[i]);
         for (j = 0; j < 3; ++j) {
-            /* (Euler rate i, body rate j) = var * g[i][j], and its mirror */
-            const ekf_scalar_t v = ekf_mul(var, g[i * 3 + j]);
+            /* (Euler rate i, body rate j) = var_j * g[i][j], and its mirror */
+            const ekf_scalar_t v = ekf_mul(var[j], g[i * 3 + j]);
             P[(ATT_PHID + i) * ATT_N + ATT_P + j] = ekf_add(P[(ATT_PHID + i) * ATT_N + ATT_P + j], v);
             P[(ATT_P + j) * ATT_N + ATT_PHID + i] = ekf_add(P[(ATT_P + j) * ATT_N + ATT_PHID + i], v);
         }
         for (j = i; j < 3; ++j) {
             ekf_scalar_t ggt = EKF_C(0);
             for (k = 0; k < 3; ++k) {
-                ggt = ekf_mac(ggt, g[i * 3 + k], g[j * 3 + k]);
+                ggt = ekf_mac(ggt, ekf_mul(g[i * 3 + k], var[k]), g[j * 3 + k]);
             }
-            ggt = ekf_mul(var, ggt);
             P[(ATT_PHID + i) * ATT_N + ATT_PHID + j] = ekf_add(P[(ATT_PHID + i) * ATT_N + ATT_PHID + j], ggt);
             if (j != i) {
                 P[(ATT_PHID + j) * ATT_N + ATT_PHID + i] = P[(ATT_PHID + i) * ATT_N + ATT_PHID + j];
@@ -312,9 +318,17 @@ ekf_status_t att_align(att_ekf_t *f, const ekf_scalar_t accel[3], const ekf_scal
     /* rates: zero with the rate uncertainty mapped into the Euler rates, plus their own
      * relative error, so that P starts positive definite */
     att_gen_noise_jacobian(&t, g);
-    add_rate_noise(f->P, g, ekf_sq(s->init_rate_sigma));
+    {
+        const ekf_scalar_t v = ekf_sq(s->init_rate_sigma), var[3] = {v, v, v};
+        add_rate_noise(f->P, g, var);
+    }
     for (i = ATT_PHID; i <= ATT_PSID; ++i) {
         f->P[i * ATT_N + i] = ekf_mac(f->P[i * ATT_N + i], f->P[i * ATT_N + i], s->euler_rate_rel);
+    }
+    /* the initial sigmas may be set below the variance floor (found by fuzzing): the floor
+     * holds from the first step, like after every update */
+    for (i = 0; i < ATT_N; ++i) {
+        f->P[i * ATT_N + i] = ekf_max(f->P[i * ATT_N + i], s->var_floor);
     }
     /* atan2 can return +pi itself (a = (0, +0, -g), upside down): into [-pi, pi) like after
      * every other stage (found by fuzzing) */
@@ -335,6 +349,7 @@ ekf_status_t att_align(att_ekf_t *f, const ekf_scalar_t accel[3], const ekf_scal
         f->accel_lp[i] = accel[i];
     }
     f->accel_lp_valid = 1u;
+    f->tilt_ok = 1u; /* the tilt is the accelerometer's */
     f->flags = ATT_FLAG_ALIGNED;
     if (!use_mag) {
         f->flags |= ATT_FLAG_HEADING_LIMITED;
@@ -463,7 +478,10 @@ static ekf_status_t predict_stage(att_ekf_t *f, ekf_scalar_t dt)
 
     /* Q = G diag(rate_walk^2 dt) G^T + angle random walk + the Euler rates' own error */
     att_gen_noise_jacobian(&tn, g);
-    add_rate_noise(f->P, g, ekf_mul(ekf_sq(s->rate_walk), dt));
+    {
+        const ekf_scalar_t v = ekf_mul(ekf_sq(s->rate_walk), dt), var[3] = {v, v, v};
+        add_rate_noise(f->P, g, var);
+    }
     add_diag(f->P, ATT_PHI, 3, ekf_mul(ekf_sq(s->angle_walk), dt));
     for (i = ATT_PHID; i <= ATT_PSID; ++i) {
         f->P[i * ATT_N + i] = ekf_mac(f->P[i * ATT_N + i], f->P[i * ATT_N + i], s->euler_rate_rel);
@@ -498,9 +516,6 @@ static ekf_status_t predict_stage(att_ekf_t *f, ekf_scalar_t dt)
     return EKF_OK;
 }
 
-/* Gate of a sensor: its setting, or 0 (off) once it has gated continuously for longer
- * than gate_timeout. A filter that has drifted away from a sensor would otherwise reject
- * it forever. */
 /* 1 if an innovation would fail the gate of gate sigmas (a bypassed gate still judges the
  * innovations, so that the bypass lasts until they are consistent again). */
 static int fails_gate(const ekf_innov_t *info, ekf_scalar_t gate)
@@ -508,6 +523,9 @@ static int fails_gate(const ekf_innov_t *info, ekf_scalar_t gate)
     return gate > EKF_C(0) && ekf_sq(info->innovation) > ekf_mul(ekf_sq(gate), info->variance);
 }
 
+/* Gate of the gyroscope or the accelerometer: its setting, or 0 (off) once it has gated
+ * continuously for longer than gate_timeout. A filter that has drifted away from a sensor
+ * would otherwise reject it forever. */
 static ekf_scalar_t gate_for(att_ekf_t *f, int sensor, ekf_scalar_t gate)
 {
     const ekf_scalar_t timeout = f->settings.gate_timeout;
@@ -528,11 +546,39 @@ static void gate_result(att_ekf_t *f, int sensor, int gated)
     } else {
         f->gated_time[sensor] = EKF_C(0);
         if (!(f->gated_time[SENSOR_GYRO] > f->settings.gate_timeout) &&
-            !(f->gated_time[SENSOR_ACCEL] > f->settings.gate_timeout) &&
-            !(f->gated_time[SENSOR_MAG] > f->settings.gate_timeout)) {
+            !(f->gated_time[SENSOR_ACCEL] > f->settings.gate_timeout)) {
             f->flags &= ~ATT_FLAG_GATE_BYPASS;
         }
     }
+}
+
+/* A clamped gyro reading (ATT_GYRO_SATURATED): the rate is at least its largest component
+ * in magnitude, by an unknown amount. Not fused; each body-rate variance is raised to at
+ * least that square (P += G diag(extra) G^T, positive semi-definite, so P stays positive
+ * definite), docs/derivation.md "Gyroscope saturation". Without this the rates would only
+ * random-walk at rate_walk while a tumble beyond full scale turns the vehicle, and the
+ * attitude would come out of the tumble wrong with a small covariance: confidently wrong,
+ * and gated by the sensors that could correct it. */
+static ekf_status_t stage_gyro_saturated(att_ekf_t *f, const ekf_scalar_t gyro[3])
+{
+    ekf_scalar_t g[9], extra[3], var;
+    att_trig_t t;
+    ekf_status_t st;
+    int i;
+
+    st = check_vec(gyro, f->settings.gyro_range);
+    if (st != EKF_OK) {
+        return note(f, st);
+    }
+    var = ekf_sq(ekf_max(ekf_max(ekf_abs(gyro[0]), ekf_abs(gyro[1])), ekf_abs(gyro[2])));
+    for (i = 0; i < 3; ++i) {
+        extra[i] = ekf_max(ekf_sub(var, f->P[(ATT_P + i) * ATT_N + ATT_P + i]), EKF_C(0));
+    }
+    (void)att_trig(f->x[ATT_PHI], f->x[ATT_THETA], f->settings.gimbal_limit, &t);
+    att_gen_noise_jacobian(&t, g);
+    add_rate_noise(f->P, g, extra);
+    count(&f->diag.gyro_saturated);
+    return EKF_SKIPPED;
 }
 
 static ekf_status_t stage_gyro(att_ekf_t *f, const ekf_scalar_t gyro[3])
@@ -596,7 +642,7 @@ static ekf_status_t stage_accel(att_ekf_t *f, const ekf_scalar_t accel[3])
     ekf_status_t st;
     ekf_innov_t info;
     static const uint8_t idx[2] = {ATT_PHI, ATT_THETA};
-    int i, gated = 0, bypass_failed = 0;
+    int i, gated = 0, bypass_failed = 0, consistent = 1;
 
     if (f == NULL) {
         return EKF_ERR_NULL;
@@ -609,6 +655,7 @@ static ekf_status_t stage_accel(att_ekf_t *f, const ekf_scalar_t accel[3])
     if (st != EKF_OK) {
         return note(f, st);
     }
+    f->tilt_ok = 0u; /* until this update shows otherwise */
     norm = norm3(accel);
     err = ekf_abs(ekf_sub(norm, s->gravity));
     f->diag.accel_norm_error = err;
@@ -680,6 +727,7 @@ static ekf_status_t stage_accel(att_ekf_t *f, const ekf_scalar_t accel[3])
         st = ekf_update_scalar(f->x, f->P, ATT_N, &hr, nu, r_var, gate, s->var_floor, &info);
         f->diag.accel_ratio[i] = info.test_ratio;
         bypass_failed |= (st == EKF_OK) && fails_gate(&info, s->accel_gate);
+        consistent = consistent && (st == EKF_OK) && !fails_gate(&info, EKF_C(3));
         if (st == EKF_GATED) {
             gated = 1;
             count(&f->diag.accel_gated);
@@ -697,6 +745,7 @@ static ekf_status_t stage_accel(att_ekf_t *f, const ekf_scalar_t accel[3])
     }
     update_gimbal_flag(f);
     gate_result(f, SENSOR_ACCEL, gated || bypass_failed);
+    f->tilt_ok = (uint8_t)(consistent && (f->flags & ATT_FLAG_ACCEL_DEWEIGHTED) == 0u);
     if (gated) {
         f->flags |= ATT_FLAG_ACCEL_GATED;
         return EKF_GATED;
@@ -713,7 +762,7 @@ static void reset_heading(att_ekf_t *f, ekf_scalar_t heading, ekf_scalar_t var)
         f->P[ATT_PSI * ATT_N + j] = EKF_C(0);
         f->P[j * ATT_N + ATT_PSI] = EKF_C(0);
     }
-    f->P[ATT_PSI * ATT_N + ATT_PSI] = var;
+    f->P[ATT_PSI * ATT_N + ATT_PSI] = ekf_max(var, f->settings.var_floor);
     f->x[ATT_PSI] = heading;
 }
 
@@ -770,15 +819,22 @@ static ekf_status_t stage_mag(att_ekf_t *f, const ekf_scalar_t mag[3])
     if (ekf_abs(f->diag.mag_norm_error) > s->mag_norm_tol || ekf_abs(f->diag.mag_dip_error) > s->mag_dip_tol) {
         f->flags |= ATT_FLAG_MAG_DISTURBED;
         count(&f->diag.mag_skipped);
+        /* the reset below needs mag_reset_time of gating an undisturbed field: a body-fixed
+         * offset can pass the tests for a moment in a turn (the soak found a reset to
+         * such a sample) */
+        f->gated_time[SENSOR_MAG] = EKF_C(0);
         return EKF_SKIPPED;
     }
     nu = ekf_wrap_pi(ekf_sub(heading, f->x[ATT_PSI]));
-    if (s->mag_reset_time > EKF_C(0) && f->gated_time[SENSOR_MAG] > s->mag_reset_time) {
+    if (s->mag_reset_time > EKF_C(0) && f->gated_time[SENSOR_MAG] > s->mag_reset_time && f->tilt_ok) {
         /* An undisturbed field (norm and dip as referenced) has disagreed with the heading
          * beyond the gate for mag_reset_time: the heading is what is wrong (lost during
          * gyro saturation, or tilted by sustained acceleration). Take the magnetic heading
-         * with the initial uncertainty. Long on purpose: a magnet fixed to the sensor can
-         * pass the norm and dip tests for seconds. */
+         * with the initial uncertainty. Only with a tilt the accelerometer confirms: the
+         * field is levelled with it, and a tilt still wrong after sustained acceleration
+         * gives a heading wrong by up to 180 deg (the soak found it). A magnet fixed to the
+         * sensor can pass the norm and dip tests for seconds; with these conditions no
+         * reset fires on BROAD's attached-magnet trials (docs/derivation.md, "Magnetometer"). */
         reset_heading(f, heading, ekf_min(ekf_sq(s->init_heading_sigma), s->heading_var_max));
         count(&f->diag.heading_resets);
         count(&f->diag.mag_fused);
@@ -791,8 +847,9 @@ static ekf_status_t stage_mag(att_ekf_t *f, const ekf_scalar_t mag[3])
      * accel_dev_var / g^2), the heading is trusted that much less (docs/derivation.md,
      * "Magnetometer"). */
     r_var = ekf_mac(ekf_sq(s->mag_heading_noise), f->mag_tan2_dip, ekf_div(f->accel_dev_var, ekf_sq(s->gravity)));
-    st = ekf_update_scalar(f->x, f->P, ATT_N, &hr, nu, r_var, gate_for(f, SENSOR_MAG, s->mag_gate),
-                           s->var_floor, &info);
+    /* no gate bypass for the magnetometer (a magnet that passes the norm and dip tests would
+     * drag the heading): recovery is the reset above, after mag_reset_time */
+    st = ekf_update_scalar(f->x, f->P, ATT_N, &hr, nu, r_var, s->mag_gate, s->var_floor, &info);
     f->diag.mag_ratio = info.test_ratio;
     if (st == EKF_GATED) {
         count(&f->diag.mag_gated);
@@ -817,8 +874,15 @@ static ekf_status_t stage_mag(att_ekf_t *f, const ekf_scalar_t mag[3])
 static void guard_covariance(att_ekf_t *f)
 {
     ekf_scalar_t ldl[ATT_N * (ATT_N + 1) / 2];
+    int i;
     if ((f->flags & ATT_FLAG_ALIGNED) == 0u) {
         return;
+    }
+    /* The updates floor the variances they reduce, but the prediction can reduce one too
+     * (F P F^T with a negative correlation, and no process noise on it if angle_walk = 0:
+     * found by fuzzing). Raising a diagonal entry keeps P positive (semi-)definite. */
+    for (i = 0; i < ATT_N; ++i) {
+        f->P[i * ATT_N + i] = ekf_max(f->P[i * ATT_N + i], f->settings.var_floor);
     }
     if (ekf_cov_ensure_pd(f->P, ATT_N, ATT_PD_MARGIN, f->settings.var_floor, ldl) > 0) {
         f->flags |= ATT_FLAG_COV_REPAIRED;
@@ -912,7 +976,7 @@ ekf_status_t att_step(att_ekf_t *f, const att_sample_t *sample, att_step_report_
     /* rest detection sees every complete sample, from the first one on, so that the
      * initial rest already yields the gyroscope offset */
     f->flags &= ~ATT_FLAG_AT_REST;
-    if ((sample->valid & (ATT_HAS_GYRO | ATT_HAS_ACCEL)) == (ATT_HAS_GYRO | ATT_HAS_ACCEL) &&
+    if ((sample->valid & (ATT_HAS_GYRO | ATT_HAS_ACCEL | ATT_GYRO_SATURATED)) == (ATT_HAS_GYRO | ATT_HAS_ACCEL) &&
         check_dt(f, sample->dt) == EKF_OK && check_vec(sample->gyro, f->settings.gyro_range) == EKF_OK &&
         check_vec(sample->accel, f->settings.accel_range) == EKF_OK &&
         att_rest_update(&f->rest, &f->settings.rest, sample->gyro, sample->accel, sample->dt)) {
@@ -928,7 +992,9 @@ ekf_status_t att_step(att_ekf_t *f, const att_sample_t *sample, att_step_report_
     }
     /* The gyro sample describes the rotation over the interval ending now: fuse it
      * before propagating, so the angles integrate it (docs/derivation.md, "Step order"). */
-    if ((sample->valid & ATT_HAS_GYRO) != 0u) {
+    if ((sample->valid & ATT_GYRO_SATURATED) != 0u) {
+        rep->gyro = stage_gyro_saturated(f, sample->gyro);
+    } else if ((sample->valid & ATT_HAS_GYRO) != 0u) {
         rep->gyro = stage_gyro(f, sample->gyro);
     }
     rep->predict = predict_stage(f, sample->dt);

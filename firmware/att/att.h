@@ -68,22 +68,23 @@ typedef struct {
     ekf_scalar_t mag_norm_tol;      /* allowed | |m| / ref - 1 |, fraction; larger: disturbed */
     ekf_scalar_t mag_dip_tol;       /* allowed |dip - ref dip|, rad; larger: disturbed */
     ekf_scalar_t mag_reset_time;    /* s of continuous gating of an undisturbed field after which
-                                       the heading is reset to the magnetic heading; 0 = never */
+                                       the heading is reset to the magnetic heading, once the
+                                       accelerometer confirms the tilt; 0 = never */
     ekf_scalar_t mag_ref_norm;      /* reference field norm (mag units); 0 = learn at alignment */
     ekf_scalar_t mag_ref_dip;       /* reference dip, rad, positive down; used if mag_ref_norm > 0 */
     ekf_scalar_t mag_declination;   /* magnetic declination, rad, east positive */
     ekf_scalar_t mag_range;         /* |component| above this is EKF_ERR_RANGE (mag units) */
     /* robustness */
-    ekf_scalar_t gate_timeout;  /* s of continuous gating of one sensor after which its gate is
-                                   bypassed: the gyro's and accelerometer's until their
-                                   innovations pass it again, the magnetometer's for one
-                                   sample (a field that passes the norm and dip tests can
-                                   still be disturbed); 0 = never */
+    ekf_scalar_t gate_timeout;  /* s of continuous gating of the gyroscope or the
+                                   accelerometer after which its gate is bypassed until its
+                                   innovations pass it again; 0 = never. (The magnetometer
+                                   is not bypassed: a field that passes the norm and dip
+                                   tests can still be disturbed; see mag_reset_time.) */
     ekf_scalar_t gimbal_limit;  /* |theta| above this (rad, < pi/2): kinematics clamped,
                                    heading held, ATT_FLAG_GIMBAL_LOCK */
     ekf_scalar_t dt_max;        /* longest accepted time step, s */
-    ekf_scalar_t heading_var_max; /* cap on the heading variance, rad^2 (unobserved heading) */
-    ekf_scalar_t var_floor;     /* floor of every state variance, rad^2 or (rad/s)^2 */
+    ekf_scalar_t heading_var_max; /* cap on the heading variance, rad^2 (unobserved heading), >= var_floor */
+    ekf_scalar_t var_floor;     /* floor of every state variance, rad^2 or (rad/s)^2; initial sigmas below it are raised to it */
     /* initialisation */
     ekf_scalar_t init_tilt_sigma;    /* rad */
     ekf_scalar_t init_heading_sigma; /* rad, with magnetometer (without: sqrt(heading_var_max)) */
@@ -125,6 +126,7 @@ typedef struct {
     uint32_t remaps;          /* pitch remaps through +-90 deg */
     uint32_t cov_repairs;     /* calls after which P needed diagonal loading */
     uint32_t heading_resets;  /* heading set to the magnetic heading (mag_reset_time) */
+    uint32_t gyro_saturated;  /* samples with ATT_GYRO_SATURATED (rate variances raised) */
     ekf_scalar_t gyro_ratio[3];
     ekf_scalar_t accel_ratio[3];
     ekf_scalar_t mag_ratio;
@@ -149,6 +151,8 @@ typedef struct {
     ekf_scalar_t accel_dev_var; /* running mean of ( |a| - g )^2, (m/s^2)^2 */
     ekf_scalar_t accel_lp[3];   /* low-passed specific force, body frame, m/s^2 */
     uint8_t accel_lp_valid;     /* accel_lp holds a sample */
+    uint8_t tilt_ok;            /* last accelerometer update: fused, no linear acceleration,
+                                   every innovation within 3 sigma (heading resets need it) */
     ekf_scalar_t last_dt;       /* s, of the last prediction (time base of the running means) */
     att_rest_t rest;            /* rest detector and gyroscope offset */
     uint32_t flags;
@@ -159,6 +163,12 @@ typedef struct {
 #define ATT_HAS_GYRO  (1u << 0)
 #define ATT_HAS_ACCEL (1u << 1)
 #define ATT_HAS_MAG   (1u << 2)
+/* gyro[] is clamped at the device's full scale on some axis (the device or the link
+ * flagged it): the true rate is at least as large, by an unknown amount. The reading is not
+ * fused, and the body-rate variances are raised to at least the square of its largest
+ * component, so that the attitude uncertainty grows while the rotation is not measured
+ * (docs/derivation.md, "Gyroscope saturation"). Set with or without ATT_HAS_GYRO. */
+#define ATT_GYRO_SATURATED (1u << 3)
 
 /* One IMU sample. Sensors whose bit is clear in valid are ignored. */
 typedef struct {
@@ -166,7 +176,7 @@ typedef struct {
     ekf_scalar_t gyro[3];  /* rad/s, body frame */
     ekf_scalar_t accel[3]; /* m/s^2, specific force, body frame (+g up at rest) */
     ekf_scalar_t mag[3];   /* magnetic field, body frame (uT or the unit of the settings) */
-    uint8_t valid;         /* ATT_HAS_* bits */
+    uint8_t valid;         /* ATT_HAS_* bits, ATT_GYRO_SATURATED */
 } att_sample_t;
 
 /* Per-stage result of att_step. A stage whose sensor was absent reports EKF_OK. */

@@ -323,6 +323,90 @@ static void test_align_upside_down_roll_in_range(void)
     TEST_ASSERT_TRUE(e[2] >= -EKF_PI && e[2] < EKF_PI);
 }
 
+/* Initial sigmas below the variance floor: the alignment raises them to the floor, and a
+ * heading cap below the floor is refused (fuzzing findings: P[0][0] and P[5][5] started
+ * below the floor the rest of the filter guarantees). */
+static void test_align_respects_variance_floor(void)
+{
+    static const ekf_scalar_t acc[3] = {EKF_C(0), EKF_C(0), EKF_C(9.81)};
+    static const ekf_scalar_t mag[3] = {EKF_C(20), EKF_C(0), EKF_C(40)};
+    att_ekf_t f;
+    att_settings_t s = att_default_settings;
+    const ekf_scalar_t *P;
+    int i;
+    s.var_floor = EKF_C(1e-6);
+    s.init_rate_sigma = EKF_C(1e-5);    /* 1e-10 rad^2/s^2 < floor */
+    s.init_heading_sigma = EKF_C(1e-4); /* 1e-8 rad^2 < floor */
+    s.init_tilt_sigma = EKF_C(1e-5);
+    TEST_ASSERT_EQUAL_INT(EKF_OK, att_init(&f, &s));
+    TEST_ASSERT_EQUAL_INT(EKF_OK, att_align(&f, acc, mag));
+    P = att_covariance(&f);
+    for (i = 0; i < ATT_N; ++i) {
+        TEST_ASSERT_TRUE(P[i * ATT_N + i] >= s.var_floor);
+    }
+    s.heading_var_max = EKF_C(1e-7); /* a ceiling under the floor */
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_SETTINGS, att_settings_check(&s));
+}
+
+/* A tumble beyond the gyro's full scale (8.7 rad/s, 500 deg/s), 1.5 s at 12.4 rad/s: with
+ * the clamped readings flagged ATT_GYRO_SATURATED the rate variances are raised, the
+ * attitude uncertainty grows with the unmeasured rotation, and the accelerometer and
+ * magnetometer take the attitude back within seconds afterwards. (Without the flag the
+ * filter came out of such tumbles 100-180 deg off with a heading sigma of 2-3 deg, gated
+ * by the magnetometer: docs/reliability.md, Finding 6.) */
+static void test_gyro_saturation_tumble_recovers(void)
+{
+    static const double zero[3] = {0.0, 0.0, 0.0};
+    static const double tumble[3] = {10.0, 4.0, 6.0};
+    const double fs = 8.7; /* rad/s */
+    ts_sim_cfg_t cfg;
+    ts_sim_t sim;
+    att_ekf_t f;
+    att_sample_t smp;
+    double err = 0.0;
+    int k, i, n_sat = 0;
+    ts_sim_default(&cfg);
+    ts_sim_init(&sim, &cfg, 77, 0.3, -0.2, 1.0);
+    init_default(&f);
+    align_on(&f, &sim);
+    for (k = 0; k < 200; ++k) {
+        ts_sim_step(&sim, zero, NULL, &smp);
+        (void)att_step(&f, &smp, NULL);
+    }
+    for (k = 0; k < 150; ++k) {
+        ts_sim_step(&sim, tumble, NULL, &smp);
+        for (i = 0; i < 3; ++i) {
+            if (fabs((double)smp.gyro[i]) > fs) {
+                smp.gyro[i] = (ekf_scalar_t)(smp.gyro[i] > 0 ? fs : -fs);
+                smp.valid |= ATT_GYRO_SATURATED;
+            }
+        }
+        n_sat += (smp.valid & ATT_GYRO_SATURATED) != 0u;
+        {
+            const ekf_status_t st = att_step(&f, &smp, NULL);
+            TEST_ASSERT_TRUE(st == EKF_OK || st == EKF_GATED || st == EKF_SKIPPED);
+        }
+        TEST_ASSERT_TRUE(ts_is_positive_definite(att_covariance(&f), ATT_N, NULL));
+        if ((smp.valid & ATT_GYRO_SATURATED) != 0u) {
+            for (i = 0; i < 3; ++i) { /* raised to fs^2, then reduced by this step's updates */
+                TEST_ASSERT_TRUE((double)att_covariance(&f)[(ATT_P + i) * ATT_N + ATT_P + i] >= 1.0);
+            }
+        }
+    }
+    TEST_ASSERT_EQUAL_INT(n_sat, (int)att_diag(&f)->gyro_saturated);
+    TEST_ASSERT_TRUE(n_sat > 100);
+    for (k = 0; k < 500; ++k) { /* 5 s at rest, every sensor */
+        ts_sim_step(&sim, zero, NULL, &smp);
+        (void)att_step(&f, &smp, NULL);
+        if (k == 299) {
+            err = est_error(&f, &sim);
+        }
+    }
+    printf("saturated tumble: error %.2f deg 3 s after, %.2f deg 5 s after\n", err / DEG, est_error(&f, &sim) / DEG);
+    TEST_ASSERT_TRUE(err < 3.0 * DEG);
+    TEST_ASSERT_TRUE(est_error(&f, &sim) < 1.0 * DEG);
+}
+
 /* ----- bad input ----- */
 
 typedef struct {
@@ -500,6 +584,8 @@ int main(void)
     RUN_TEST(test_heading_capped_without_magnetometer);
     RUN_TEST(test_linear_acceleration_and_mag_disturbance_flags);
     RUN_TEST(test_align_upside_down_roll_in_range);
+    RUN_TEST(test_align_respects_variance_floor);
+    RUN_TEST(test_gyro_saturation_tumble_recovers);
     RUN_TEST(test_bad_settings_rejected);
     RUN_TEST(test_not_initialised);
     RUN_TEST(test_every_bad_input_class_leaves_state_unchanged);

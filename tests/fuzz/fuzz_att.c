@@ -179,8 +179,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
                     FZ_CHECK(memcmp(&P[i * ATT_N + j], &P[j * ATT_N + i], sizeof(P[0])) == 0,
                              "P not symmetric at (%d,%d) step %d", i, j, steps);
                 }
-                FZ_CHECK(P[i * ATT_N + i] >= s.var_floor, "P[%d][%d] = %g below the floor", i, i,
-                         (double)P[i * ATT_N + i]);
+                FZ_CHECK(P[i * ATT_N + i] >= s.var_floor, "P[%d][%d] = %g below the floor %g at step %d (status %d, flags 0x%x)",
+                         i, i, (double)P[i * ATT_N + i], (double)s.var_floor, steps, (int)st, (unsigned)att_flags(&f));
             }
             FZ_CHECK(pos_def(P), "P not positive definite at step %d", steps);
             FZ_CHECK(x[ATT_PHI] >= -EKF_PI && x[ATT_PHI] < EKF_PI && x[ATT_PSI] >= -EKF_PI && x[ATT_PSI] < EKF_PI &&
