@@ -29,6 +29,18 @@ static void put(FILE *fp, const ekf_scalar_t *v, int n)
     }
 }
 
+/* Trigonometry of (phi, theta) computed in double (pitch clamped to the limit, as att_trig
+ * does) and put on the grid. */
+static void grid_trig(double phi, double theta, att_trig_t *out)
+{
+    theta = theta > LIMIT ? LIMIT : theta < -LIMIT ? -LIMIT : theta;
+    out->sphi = in(sin(phi));
+    out->cphi = in(cos(phi));
+    out->sth = in(sin(theta));
+    out->cth = in(cos(theta));
+    out->secth = in(1.0 / cos(theta));
+}
+
 int main(int argc, char **argv)
 {
     ts_rng_t r;
@@ -45,8 +57,8 @@ int main(int argc, char **argv)
     }
     ts_rng_seed(&r, 31337);
     for (k = 0; k < STATES; ++k) {
-        ekf_scalar_t x[ATT_N], d[ATT_GEN_F_NNZ], g[9], h[3], hj[6], lev[3], er[3], br[3], m[3], dt, half;
-        att_trig_t tm, tn;
+        ekf_scalar_t x[ATT_N], d[ATT_GEN_F_NNZ], g[9], h[3], hj[6], lev[3], er[3], br[3], m[3], dt;
+        att_trig_t tm, tn, tn_own;
         const int rest = (k % 10) == 0, edge = (k % 10) == 1;
         for (i = 0; i < 3; ++i) {
             x[ATT_P + i] = rest ? EKF_C(0) : in(ts_uniform_in(&r, -40.0, 40.0));
@@ -58,16 +70,25 @@ int main(int argc, char **argv)
                                             : ts_uniform_in(&r, -LIMIT, LIMIT));
         x[ATT_PSI] = in(ts_uniform_in(&r, -3.14159, 3.14159));
         dt = in(ts_uniform_in(&r, 0.001, 0.01));
-        /* midpoint and advanced angles computed in double and put on the grid too: the
-         * Jacobian's sensitivity to the angle (~sec^3 |w|) would otherwise amplify the
-         * rounding of this input step, not of the functions under test */
-        half = ekf_mul(dt, EKF_C(0.5));
-        (void)att_trig(in(ekf_to_double(x[ATT_PHI]) + ekf_to_double(half) * ekf_to_double(x[ATT_PHID])),
-                       in(ekf_to_double(x[ATT_THETA]) + ekf_to_double(half) * ekf_to_double(x[ATT_THETAD])),
-                       EKF_C(LIMIT), &tm);
-        (void)att_trig(in(ekf_to_double(x[ATT_PHI]) + ekf_to_double(dt) * ekf_to_double(x[ATT_PHID])),
-                       in(ekf_to_double(x[ATT_THETA]) + ekf_to_double(dt) * ekf_to_double(x[ATT_THETAD])),
-                       EKF_C(LIMIT), &tn);
+        {
+            const double half = 0.5 * ekf_to_double(dt); /* exact in double, in both builds */
+            /* midpoint and advanced angles computed in double and put on the grid: the
+             * Jacobian's sensitivity to the angle (~sec^3 |w|) would otherwise amplify the
+             * rounding of this input step, not of the functions under test */
+            const double phim = ekf_to_double(in(ekf_to_double(x[ATT_PHI]) + half * ekf_to_double(x[ATT_PHID])));
+            const double thm = ekf_to_double(in(ekf_to_double(x[ATT_THETA]) + half * ekf_to_double(x[ATT_THETAD])));
+            const double phin = ekf_to_double(in(ekf_to_double(x[ATT_PHI]) + ekf_to_double(dt) * ekf_to_double(x[ATT_PHID])));
+            const double thn = ekf_to_double(in(ekf_to_double(x[ATT_THETA]) + ekf_to_double(dt) * ekf_to_double(x[ATT_THETAD])));
+            /* this build's own trigonometry: written out and checked on its own */
+            (void)att_trig(ekf_from_double(phin), ekf_from_double(thn), EKF_C(LIMIT), &tn_own);
+            /* The generated functions get trigonometry computed in double and put on the
+             * grid, the same inputs in both builds, so that what is compared is their own
+             * arithmetic: the fixed-point sine and cosine (a few LSB off) would otherwise be
+             * amplified by the functions' sensitivity to the angle, which no arrangement of
+             * the arithmetic can remove. */
+            grid_trig(phim, thm, &tm);
+            grid_trig(phin, thn, &tn);
+        }
         att_gen_transition_jacobian(&tm, &tn, x, dt, d);
         att_gen_noise_jacobian(&tn, g);
         att_gen_accel_h(&tn, h);
@@ -75,6 +96,7 @@ int main(int argc, char **argv)
         att_gen_mag_level(&tn, m, lev);
         att_gen_euler_rates(&tn, &x[ATT_P], er);
         att_gen_body_rates(&tn, &x[ATT_PHID], br);
+        tn = tn_own;
         put(fp, &tn.sphi, 1);
         put(fp, &tn.cphi, 1);
         put(fp, &tn.sth, 1);

@@ -194,6 +194,19 @@ TRIG_MID_PROLOGUE = [
 ]
 STATE_PROLOGUE = [f"const ekf_scalar_t {s.name} = x[{_index(i)}];" for i, s in enumerate(X)]
 
+# Typical magnitudes of the generated code's inputs, for the order of the factors of each
+# product (cprinter.to_c: largest first, which keeps the fixed-point build's rounding
+# relative to the result): sec(theta) up to 48 at the default gimbal limit, rates a few
+# rad/s (up to gyro_range), sines and cosines below 1, steps of milliseconds, the field in uT.
+SCALES = {
+    **{name: 10.0 for name in ("secth", "secthm")},
+    **{name: 0.7 for name in ("sph", "cph", "sth", "cth", "sphm", "cphm", "sthm", "cthm")},
+    **{name: 5.0 for name in ("p", "q", "r", "phid", "thetad", "psid")},
+    **{name: 1.5 for name in ("phi", "theta", "psi")},
+    "dt": 0.005,
+    **{name: 50.0 for name in ("mx", "my", "mz")},
+}
+
 
 def _check_against_transition(F: sp.Matrix, G: sp.Matrix) -> None:
     """The chain-rule Jacobians equal sympy's direct derivatives of transition() (checked
@@ -249,6 +262,7 @@ def build() -> Dict[str, str]:
     fns = []
     fns.append(
         CFunction(
+            scales=SCALES,
             name="att_gen_euler_rates",
             doc="Euler-angle rates (rad/s) from body rates w = (p, q, r) (rad/s): W(phi, theta) w.\n"
             "t: trigonometry of (phi, theta).",
@@ -260,6 +274,7 @@ def build() -> Dict[str, str]:
     )
     fns.append(
         CFunction(
+            scales=SCALES,
             name="att_gen_body_rates",
             doc="Body rates (rad/s) from Euler-angle rates e = (phid, thetad, psid) (rad/s):\n"
             "E(phi, theta) e, the inverse of att_gen_euler_rates. t: trigonometry of (phi, theta).",
@@ -275,6 +290,7 @@ def build() -> Dict[str, str]:
     )
     fns.append(
         CFunction(
+            scales=SCALES,
             name="att_gen_transition_jacobian",
             doc="Non-zero entries of D = F - I, F = df/dx, in the order of att_gen_f_pattern.\n"
             "x: state before the step; dt: step (s); tm: trigonometry of the midpoint angles\n"
@@ -282,11 +298,12 @@ def build() -> Dict[str, str]:
             params="const att_trig_t *tm, const att_trig_t *t, const ekf_scalar_t x[ATT_N], ekf_scalar_t dt, "
             "ekf_scalar_t d[ATT_GEN_F_NNZ]",
             prologue=TRIG_MID_PROLOGUE + TRIG_PROLOGUE + STATE_PROLOGUE,
-            outputs=[(f"d[{k}]", e) for k, (_, _, e) in enumerate(d_entries)],
+            outputs=[(f"d[{k}]", sp.horner(e, wrt=dt)) for k, (_, _, e) in enumerate(d_entries)],
         )
     )
     fns.append(
         CFunction(
+            scales=SCALES,
             name="att_gen_noise_jacobian",
             doc="Euler-rate block (rows PHID..PSID) of G = df/dw, row-major 3x3; the body-rate\n"
             "block of G is the identity and the angle block is zero. t: trigonometry of the\n"
@@ -298,6 +315,7 @@ def build() -> Dict[str, str]:
     )
     fns.append(
         CFunction(
+            scales=SCALES,
             name="att_gen_accel_h",
             doc="Predicted accelerometer direction (unit vector, body frame) h(x) = R^T (0,0,1),\n"
             "the specific force of gravity divided by g. t: trigonometry of (phi, theta).",
@@ -308,6 +326,7 @@ def build() -> Dict[str, str]:
     )
     fns.append(
         CFunction(
+            scales=SCALES,
             name="att_gen_accel_jacobian",
             doc="dh/d(phi, theta) of att_gen_accel_h, row-major 3x2 (all other columns are zero).",
             params="const att_trig_t *t, ekf_scalar_t hj[6]",
@@ -321,6 +340,7 @@ def build() -> Dict[str, str]:
     )
     fns.append(
         CFunction(
+            scales=SCALES,
             name="att_gen_mag_level",
             doc="Magnetic field m (body frame, any unit) rotated into the yaw frame:\n"
             "Ry(theta) Rx(phi) m. Heading psi = atan2(out[0], out[1]) - declination;\n"

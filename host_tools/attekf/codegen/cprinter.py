@@ -9,7 +9,7 @@ any later fixed-point representation. Common subexpressions are shared with ``sy
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Dict, List, Sequence, Tuple
+from typing import Dict, List, Optional, Sequence, Tuple
 
 import sympy as sp
 
@@ -35,8 +35,34 @@ def _fold(func: str, parts: Sequence[str]) -> str:
     return out
 
 
-def to_c(expr: sp.Expr) -> str:
-    """C text for one expression built from symbols, numbers, +, * and integer powers."""
+def magnitude(expr: sp.Expr, scales: Dict[str, float]) -> float:
+    """Typical size of an expression from the typical sizes of its symbols (1 if unknown):
+    products multiply, sums take the largest term."""
+    if expr.is_Symbol:
+        return scales.get(expr.name, 1.0)
+    if expr.is_Number:
+        return abs(float(expr))
+    if expr.is_Mul:
+        out = 1.0
+        for arg in expr.args:
+            out *= magnitude(arg, scales)
+        return out
+    if expr.is_Add:
+        return max(magnitude(arg, scales) for arg in expr.args)
+    if expr.is_Pow and expr.args[1].is_Integer:
+        return magnitude(expr.args[0], scales) ** int(expr.args[1])
+    return 1.0
+
+
+def to_c(expr: sp.Expr, scales: Optional[Dict[str, float]] = None) -> str:
+    """C text for one expression built from symbols, numbers, +, * and integer powers.
+
+    scales (symbol name -> typical magnitude): if given, the factors of every product are
+    multiplied largest first. In fixed point each product is rounded to 1/2 LSB absolute,
+    and that error is then scaled by the factors multiplied after it: a small early
+    intermediate times sec(theta)^2 and a body rate loses most of its digits, whereas large
+    factors first and small ones last shrink the early rounding (docs/fixed_point.md,
+    "Accuracy"). Without scales: sympy's canonical order, constant first."""
     if expr.is_Symbol:
         return expr.name
     if expr.is_Number:
@@ -49,9 +75,9 @@ def to_c(expr: sp.Expr) -> str:
         for term in sorted(expr.args, key=sp.default_sort_key):
             coeff, rest = term.as_coeff_Mul()
             if coeff.is_negative:
-                neg.append(to_c(-term))
+                neg.append(to_c(-term, scales))
             else:
-                pos.append(to_c(term))
+                pos.append(to_c(term, scales))
         if not pos:
             return f"ekf_neg({_fold('ekf_add', neg)})"
         out = _fold("ekf_add", pos)
@@ -61,17 +87,20 @@ def to_c(expr: sp.Expr) -> str:
     if expr.is_Mul:
         coeff, rest = expr.as_coeff_Mul()
         if coeff.is_negative:
-            return f"ekf_neg({to_c(-expr)})"
-        factors = []
-        if coeff != 1:
-            factors.append(_const(coeff))
-        for factor in sorted(sp.Mul.make_args(rest), key=sp.default_sort_key):
-            factors.append(to_c(factor))
+            return f"ekf_neg({to_c(-expr, scales)})"
+        args = sorted(sp.Mul.make_args(rest), key=sp.default_sort_key)
+        if scales is None:
+            factors = ([_const(coeff)] if coeff != 1 else []) + [to_c(f) for f in args]
+        else:
+            sized = [(magnitude(f, scales), to_c(f, scales)) for f in args]
+            if coeff != 1:
+                sized.append((abs(float(coeff)), _const(coeff)))
+            factors = [text for _, text in sorted(sized, key=lambda st: -st[0])]  # stable
         return _fold("ekf_mul", factors)
     if expr.is_Pow:
         base, exp = expr.args
         if exp.is_Integer and 1 < int(exp) <= 6:
-            b = to_c(base)
+            b = to_c(base, scales)
             return _fold("ekf_mul", [b] * int(exp))
         raise CodegenError(f"power not supported by the scalar layer: {expr}")
     raise CodegenError(f"unsupported expression ({type(expr).__name__}): {expr}")
@@ -86,6 +115,7 @@ class CFunction:
     params: str  # C parameter list
     outputs: List[Tuple[str, sp.Expr]]  # (C lvalue, expression)
     prologue: List[str] = field(default_factory=list)  # C lines that bind inputs to symbols
+    scales: Optional[Dict[str, float]] = None  # typical symbol magnitudes: see to_c
 
     def render(self) -> str:
         exprs = [e for _, e in self.outputs]
@@ -99,10 +129,13 @@ class CFunction:
             var = line.split("=")[0].split()[-1]
             if var in used:
                 lines.append(f"    {line}")
+        scales = None if self.scales is None else dict(self.scales)
         for sym, e in temps:
-            lines.append(f"    const ekf_scalar_t {sym.name} = {to_c(e)};")
+            lines.append(f"    const ekf_scalar_t {sym.name} = {to_c(e, scales)};")
+            if scales is not None:
+                scales[sym.name] = magnitude(e, scales)
         for (lhs, _), e in zip(self.outputs, reduced):
-            lines.append(f"    {lhs} = {to_c(e)};")
+            lines.append(f"    {lhs} = {to_c(e, scales)};")
         lines.append("}")
         return "\n".join(lines)
 
