@@ -159,7 +159,9 @@ static void process(app_t *a, const hal_sample_t *s)
     hal_count(&a->counters[HAL_CNT_SAMPLES]);
 
     if ((s->saturated & use) != 0u) {
-        /* A clamped value is wrong by an unknown amount: better not fused at all. */
+        /* A clamped value is wrong by an unknown amount: better not fused at all. A clamped
+         * gyro still says the rate is at least that large: the estimator is told
+         * (ATT_GYRO_SATURATED) and widens its rate uncertainty. */
         hal_count(&a->counters[HAL_CNT_SATURATED]);
         a->latched |= HAL_FLAG_IN_SATURATED;
         hal_report(hal, HAL_LOG_DEBUG, HAL_EV_SATURATED, (int32_t)(s->saturated & use));
@@ -219,7 +221,8 @@ static void process(app_t *a, const hal_sample_t *s)
     }
     in.valid = (uint8_t)(((use & HAL_HAS_GYRO) ? ATT_HAS_GYRO : 0u) |
                          ((use & HAL_HAS_ACCEL) ? ATT_HAS_ACCEL : 0u) |
-                         ((use & HAL_HAS_MAG) ? ATT_HAS_MAG : 0u));
+                         ((use & HAL_HAS_MAG) ? ATT_HAS_MAG : 0u) |
+                         ((s->valid & s->saturated & HAL_HAS_GYRO) ? ATT_GYRO_SATURATED : 0u));
     in.dt = (ekf_scalar_t)dt_us * EKF_C(1e-6);
     if ((att_flags(&a->ekf) & ATT_FLAG_ALIGNED) != 0u) {
         /* Longer than one filter step allows (a gap): predict across it in pieces. */

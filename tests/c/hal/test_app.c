@@ -282,6 +282,8 @@ static void test_saturated_sensor_is_not_fused(void)
     TEST_ASSERT_TRUE((flags_since(0) & HAL_FLAG_IN_SATURATED) != 0u);
     /* the clamped 32.767 rad/s was not fused: the rate estimate stays near zero */
     TEST_ASSERT_FLOAT_WITHIN(0.05f, 0.0f, app_last_output(&app)->rates[0]);
+    /* but the estimator was told, and widened its rate uncertainty for that sample */
+    TEST_ASSERT_EQUAL_UINT32(1u, att_diag(&app.ekf)->gyro_saturated);
 }
 
 static void test_bad_values_are_rejected_and_counted(void)
