@@ -1,7 +1,7 @@
 /*
  * soak.c - long-run soak of the attitude estimator (docs/reliability.md, "Soak").
  *
- *     attekf-soak_f [--steps N] [--seed S] [--bound-deg B] [--quiet]
+ *     attekf-soak_f [--steps N] [--seed S] [--bound-deg B] [--settle-s S] [--quiet] [--trace FILE]
  *
  * Flies a simulated vehicle at 1 kHz (tests/c/support/testsim.c: exact attitude
  * integration, sensor noise, constant gyro bias) through random manoeuvre segments of
@@ -10,8 +10,8 @@
  *   12 rad/s), loops through pitch +-90 deg (gimbal lock region);
  * with faults drawn per segment:
  *   sensor dropouts (gyro / accel / mag missing for the segment, or 5 % of samples),
- *   gyro saturation (device full scale 8.7 rad/s: the sample's gyro is flagged and not
- *   fused, as firmware/app does), magnetic disturbance (field offset up to 60 uT),
+ *   gyro saturation (device full scale 8.7 rad/s: the reading is clamped and flagged
+ *   ATT_GYRO_SATURATED, as firmware/app passes it on), magnetic disturbance (field offset up to 60 uT),
  *   linear acceleration (up to 2 g), timing jitter and missed samples (dt up to 20 ms),
  *   and rare bad inputs: NaN/Inf components, values beyond the configured ranges, dt <= 0
  *   or above dt_max.
@@ -24,7 +24,9 @@
  * condition and asserted only where it is defined: in "benign" time (all sensors, no
  * disturbance, |pitch| < 80 deg, at least 5 s after the last fault segment or tumble)
  * it must stay below --bound-deg (default BENIGN_BOUND_DEG; 0 = report only). The maximum over all time is reported.
- * Prints one summary line (key=value) at the end.
+ * Prints one summary line (key=value) at the end. --trace FILE writes a CSV row every
+ * 10 ms (truth, estimate, error, heading sigma, segment and faults, flags) to find out
+ * what a large error followed.
  */
 #include <math.h>
 #include <stdio.h>
@@ -35,7 +37,7 @@
 #include "testsim.h"
 
 #define BENIGN_BOUND_DEG 5.0 /* default max attitude error in benign time, deg (--bound-deg) */
-#define SETTLE_S 5.0         /* benign only this long after the last fault */
+#define SETTLE_S 5.0         /* default: benign only this long after the last fault, s (--settle-s) */
 #define GYRO_FS 8.7          /* simulated device full scale, rad/s (500 deg/s) */
 #define RAD2DEG 57.29577951308232
 
@@ -54,6 +56,11 @@ typedef struct {
     int jitter;           /* dt jitter and missed samples */
     int faulty;           /* any fault in this segment */
 } segment_t;
+
+static double norm3(const double v[3])
+{
+    return sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+}
 
 static void random_unit(ts_rng_t *r, double v[3])
 {
@@ -150,7 +157,8 @@ int main(int argc, char **argv)
     long long steps = 1000000, k;
     unsigned long long seed = 1;
     int quiet = 0, i;
-    double bound_deg = BENIGN_BOUND_DEG;
+    FILE *trace = NULL;
+    double bound_deg = BENIGN_BOUND_DEG, settle_s = SETTLE_S;
     ts_sim_cfg_t cfg;
     ts_sim_t sim;
     ts_rng_t r;
@@ -168,10 +176,21 @@ int main(int argc, char **argv)
             seed = strtoull(argv[++i], NULL, 10);
         } else if (strcmp(argv[i], "--bound-deg") == 0 && i + 1 < argc) {
             bound_deg = atof(argv[++i]); /* 0: report only */
+        } else if (strcmp(argv[i], "--settle-s") == 0 && i + 1 < argc) {
+            settle_s = atof(argv[++i]);
         } else if (strcmp(argv[i], "--quiet") == 0) {
             quiet = 1;
+        } else if (strcmp(argv[i], "--trace") == 0 && i + 1 < argc) {
+            trace = fopen(argv[++i], "w");
+            if (trace == NULL) {
+                perror(argv[i]);
+                return 2;
+            }
+            fprintf(trace, "t_s,segment,drop,flaky,mag_off_uT,lin_acc_ms2,jitter,saturated,benign,"
+                           "roll_deg,pitch_deg,yaw_deg,est_roll_deg,est_pitch_deg,est_yaw_deg,err_deg,"
+                           "heading_sigma_deg,flags\n");
         } else {
-            fprintf(stderr, "usage: %s [--steps N] [--seed S] [--bound-deg B] [--quiet]\n", argv[0]);
+            fprintf(stderr, "usage: %s [--steps N] [--seed S] [--bound-deg B] [--settle-s S] [--quiet] [--trace FILE]\n", argv[0]);
             return 2;
         }
     }
@@ -204,7 +223,7 @@ int main(int argc, char **argv)
         double w[3], truth[3], est_d[3], pivot, err;
         ekf_scalar_t est[3];
         const att_diag_t *d;
-        int benign;
+        int benign, sat = 0;
 
         if (--seg.left <= 0) {
             new_segment(&r, &seg);
@@ -235,8 +254,13 @@ int main(int argc, char **argv)
             ++st.dropouts;
         }
         if (fabs(w[0]) > GYRO_FS || fabs(w[1]) > GYRO_FS || fabs(w[2]) > GYRO_FS) {
-            smp.valid &= (uint8_t)~ATT_HAS_GYRO; /* saturated: flagged by the device, not fused */
+            /* saturated: the device clamps and flags it, the node passes the flag on (firmware/app) */
+            for (i = 0; i < 3; ++i) {
+                smp.gyro[i] = ekf_max(ekf_min(smp.gyro[i], EKF_C(GYRO_FS)), EKF_C(-GYRO_FS));
+            }
+            smp.valid |= ATT_GYRO_SATURATED;
             ++st.saturated;
+            sat = 1;
         }
         {
             const double u = ts_uniform(&r);
@@ -302,7 +326,16 @@ int main(int argc, char **argv)
             st.max_err_deg = err;
         }
         since_fault_s = seg.faulty ? 0.0 : since_fault_s + sim.cfg.dt;
-        benign = since_fault_s >= SETTLE_S && fabs(truth[1]) < 80.0 / RAD2DEG;
+        benign = since_fault_s >= settle_s && fabs(truth[1]) < 80.0 / RAD2DEG;
+        if (trace != NULL && k % 10 == 0) {
+            fprintf(trace, "%.3f,%s,%u,%u,%.1f,%.2f,%d,%d,%d,%.2f,%.2f,%.2f,%.2f,%.2f,%.2f,%.2f,%.2f,0x%x\n", sim.t,
+                    seg_names[seg.kind], (unsigned)seg.drop, (unsigned)seg.flaky, norm3(seg.mag_off),
+                    norm3(seg.lin_acc), seg.jitter, sat, benign,
+                    truth[0] * RAD2DEG, truth[1] * RAD2DEG, truth[2] * RAD2DEG, est_d[0] * RAD2DEG,
+                    est_d[1] * RAD2DEG, est_d[2] * RAD2DEG, err,
+                    sqrt(ekf_to_double(att_covariance(&f)[ATT_PSI * ATT_N + ATT_PSI])) * RAD2DEG,
+                    (unsigned)att_flags(&f));
+        }
         if (benign) {
             ++st.benign_steps;
             st.sum_benign_err_deg += err;
@@ -319,10 +352,10 @@ int main(int argc, char **argv)
                     st.max_benign_err_deg);
         }
     }
-    printf("soak scalar=%s seed=%llu bound_deg=%g steps=%llu sim_hours=%.3f accepted=%llu benign_steps=%llu "
+    printf("soak scalar=%s seed=%llu bound_deg=%g settle_s=%g steps=%llu sim_hours=%.3f accepted=%llu benign_steps=%llu "
            "max_err_deg=%.3f max_benign_err_deg=%.3f mean_benign_err_deg=%.4f min_pivot=%.3e "
            "cov_repairs=%u remaps=%u rejected=%u gated=%u/%u/%u skipped=%u/%u saturated=%llu dropouts=%llu bad_inputs=%llu",
-           EKF_SCALAR_NAME, seed, bound_deg, st.steps, sim.t / 3600.0, st.accepted, st.benign_steps, st.max_err_deg,
+           EKF_SCALAR_NAME, seed, bound_deg, settle_s, st.steps, sim.t / 3600.0, st.accepted, st.benign_steps, st.max_err_deg,
            st.max_benign_err_deg, st.benign_steps ? st.sum_benign_err_deg / (double)st.benign_steps : 0.0,
            st.min_pivot, (unsigned)f.diag.cov_repairs, (unsigned)f.diag.remaps, (unsigned)f.diag.rejected,
            (unsigned)f.diag.gyro_gated, (unsigned)f.diag.accel_gated, (unsigned)f.diag.mag_gated,
@@ -338,5 +371,8 @@ int main(int argc, char **argv)
         }
     }
     printf(" result=PASS\n");
+    if (trace != NULL) {
+        fclose(trace);
+    }
     return 0;
 }
