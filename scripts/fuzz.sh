@@ -2,9 +2,11 @@
 # Fuzzing (tests/fuzz/README.md, docs/reliability.md): builds the libFuzzer targets with
 # clang (ASan + UBSan, every finding fatal) and runs them, all at once, for a fixed time.
 #
-#   ./scripts/fuzz.sh                  every target, 60 s each (the test suite uses --time 45)
+#   ./scripts/fuzz.sh                  every target, 60 s each (what the test suite runs)
 #   ./scripts/fuzz.sh --time 3600      a long run (an hour per target)
 #   ./scripts/fuzz.sh --targets "fuzz_att_f fuzz_att_d" --time 600 --jobs 2
+#   ./scripts/fuzz.sh --seed 0         random mutation seed (default 1: the suite's run is
+#                                      repeatable; a finding reproduces with the same seed)
 #
 # Targets: fuzz_att_f, fuzz_att_d (estimator, float / double), fuzz_hal_can (CAN protocol +
 # node), fuzz_socketcan (SocketCAN receive path), fuzz_parsers (Python file parsers, atheris).
@@ -19,12 +21,14 @@ cd "$ROOT"
 TIME=60
 TARGETS="fuzz_att_f fuzz_hal_can fuzz_socketcan fuzz_parsers"
 WORKERS=1
+SEED=1
 while (($#)); do
   case "$1" in
     --time) TIME="$2"; shift 2 ;;
     --targets) TARGETS="$2"; shift 2 ;;
     --jobs) WORKERS="$2"; shift 2 ;;
-    -h|--help) sed -n '2,17p' "$0"; exit 0 ;;
+    --seed) SEED="$2"; shift 2 ;;
+    -h|--help) sed -n '2,19p' "$0"; exit 0 ;;
     *) echo "fuzz.sh: unknown option '$1' (see --help)" >&2; exit 2 ;;
   esac
 done
@@ -47,7 +51,7 @@ for t in $TARGETS; do
   work="$OUT/corpus/$t"
   art="$OUT/artifacts/$t/"
   mkdir -p "$work" "$art"
-  opts=(-max_total_time="$TIME" -print_final_stats=1 -artifact_prefix="$art" -timeout=10 -rss_limit_mb=2048)
+  opts=(-max_total_time="$TIME" -seed="$SEED" -print_final_stats=1 -artifact_prefix="$art" -timeout=10 -rss_limit_mb=2048)
   if [ "$WORKERS" -gt 1 ]; then opts+=(-fork="$WORKERS" -ignore_crashes=0); fi
   if [ "$t" = fuzz_parsers ]; then
     cmd=("$ROOT/.venv/bin/python" "$ROOT/tests/fuzz/fuzz_parsers.py")

@@ -28,8 +28,8 @@ echo "[test] ctest under ASan + UBSan (scripts/test_sanitizers.sh)"
 "$ROOT/scripts/test_sanitizers.sh" || status=1
 echo "[test] valgrind memcheck on attekf-node (scripts/test_valgrind.sh)"
 "$ROOT/scripts/test_valgrind.sh" || status=1
-echo "[test] fuzzing, 45 s per target (scripts/fuzz.sh)"
-"$ROOT/scripts/fuzz.sh" --time 45 || status=1
+echo "[test] fuzzing, 60 s per target, mutation seed 1 (scripts/fuzz.sh)"
+"$ROOT/scripts/fuzz.sh" --time 60 --seed 1 || status=1
 
 if [ "$status" -ne 0 ]; then
   echo "[test] FAILED"
