@@ -9,7 +9,8 @@
 #                                      repeatable; a finding reproduces with the same seed)
 #
 # Targets: fuzz_att_f, fuzz_att_d (estimator, float / double), fuzz_hal_can (CAN protocol +
-# node), fuzz_socketcan (SocketCAN receive path), fuzz_parsers (Python file parsers, atheris).
+# node), fuzz_socketcan (SocketCAN receive path), fuzz_candump (the node's candump log lines),
+# fuzz_parsers (Python file parsers, atheris).
 # Default: all but fuzz_att_d. --jobs: libFuzzer worker processes per target (default 1).
 # Each target starts from its committed seeds (tests/fuzz/corpus/<target>) plus what earlier
 # runs found (build/fuzz/corpus/<target>, not committed). A crash, an invariant failure or
@@ -19,7 +20,7 @@ set -uo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
 TIME=60
-TARGETS="fuzz_att_f fuzz_hal_can fuzz_socketcan fuzz_parsers"
+TARGETS="fuzz_att_f fuzz_hal_can fuzz_socketcan fuzz_candump fuzz_parsers"
 WORKERS=1
 SEED=1
 while (($#)); do

@@ -23,6 +23,7 @@
 #include <time.h>
 
 #include "app.h"
+#include "candump.h"
 #include "hal.h"
 #include "hal_can.h"
 #include "hal_socketcan.h"
@@ -303,64 +304,26 @@ typedef struct {
     unsigned long line;
 } logreader_t;
 
-static int hexval(char c)
-{
-    if (c >= '0' && c <= '9') return c - '0';
-    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
-    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
-    return -1;
-}
-
-/* Next data frame: 1, 0 at end of file, -1 on a malformed line (message printed).
- * Format: "(SECONDS.MICROS) CHANNEL ID#HEXDATA", as candump -L and python-can write. */
+/* Next data frame: 1, 0 at end of file, -1 on a malformed line (message printed). The
+ * line format is candump.h's. */
 static int log_next(logreader_t *r, hal_can_frame_t *f)
 {
     char buf[512];
     while (fgets(buf, sizeof(buf), r->f) != NULL) {
-        const char *p = buf;
-        char *end;
-        unsigned long long sec, usec = 0u;
-        unsigned long id;
-        int nd = 0, k;
-        const char *frac;
+        const size_t len = strlen(buf);
         ++r->line;
-        while (*p == ' ' || *p == '\t') ++p;
-        if (*p == '\n' || *p == '\0' || *p == '#') continue;
-        if (*p != '(') goto bad;
-        ++p;
-        sec = strtoull(p, &end, 10);
-        if (end == p || *end != '.') goto bad;
-        frac = end + 1;
-        for (k = 0; k < 6; ++k) {
-            if (frac[k] < '0' || frac[k] > '9') goto bad;
-            usec = usec * 10u + (unsigned long long)(frac[k] - '0');
+        if (len == sizeof(buf) - 1u && buf[len - 1u] != '\n' && !feof(r->f)) {
+            fprintf(stderr, "attekf-node: %s:%lu: line longer than %u characters\n", r->path, r->line,
+                    (unsigned)(sizeof(buf) - 2u));
+            return -1;
         }
-        p = frac + 6;
-        while (*p >= '0' && *p <= '9') ++p; /* more digits than microseconds: ignored */
-        if (*p != ')') goto bad;
-        ++p;
-        while (*p == ' ') ++p;
-        while (*p != ' ' && *p != '\0') ++p; /* channel */
-        while (*p == ' ') ++p;
-        id = strtoul(p, &end, 16);
-        if (end == p || *end != '#' || id > 0x1FFFFFFFu) goto bad;
-        /* candump writes 3 hex digits for 11-bit ids and 8 for 29-bit ones */
-        f->id = (end - p > 3) ? (uint32_t)id | 0x80000000u : (uint32_t)id;
-        p = end + 1;
-        if (*p == 'R' || *p == '#') continue; /* remote / CAN FD frame: not ours */
-        f->t_us = (uint64_t)sec * 1000000u + (uint64_t)usec;
-        memset(f->data, 0, sizeof(f->data));
-        while (hexval(p[0]) >= 0 && hexval(p[1]) >= 0) {
-            if (nd == 8) goto bad;
-            f->data[nd++] = (uint8_t)(hexval(p[0]) * 16 + hexval(p[1]));
-            p += 2;
+        switch (candump_parse_line(buf, f)) {
+        case CANDUMP_FRAME: return 1;
+        case CANDUMP_SKIP: break;
+        default:
+            fprintf(stderr, "attekf-node: %s:%lu: not a candump log line\n", r->path, r->line);
+            return -1;
         }
-        if (*p != '\n' && *p != '\0' && *p != ' ' && *p != '\r') goto bad;
-        f->dlc = (uint8_t)nd;
-        return 1;
-    bad:
-        fprintf(stderr, "attekf-node: %s:%lu: not a candump log line\n", r->path, r->line);
-        return -1;
     }
     if (ferror(r->f)) {
         fprintf(stderr, "attekf-node: %s: read error\n", r->path);
@@ -378,18 +341,13 @@ typedef struct {
 static void write_frame(void *user, const hal_can_frame_t *f)
 {
     replay_sink_t *s = (replay_sink_t *)user;
-    int i;
+    char line[96];
     if (s->out == NULL) {
         return;
     }
-    if (fprintf(s->out, "(%" PRIu64 ".%06" PRIu64 ") %s %0*" PRIX32 "#", f->t_us / 1000000u,
-                f->t_us % 1000000u, s->channel, (f->id & 0x80000000u) ? 8 : 3, f->id & 0x1FFFFFFFu) < 0) {
+    if (candump_format_line(f, s->channel, line, sizeof(line)) < 0 || fputs(line, s->out) == EOF) {
         s->write_error = 1;
     }
-    for (i = 0; i < f->dlc; ++i) {
-        fprintf(s->out, "%02X", f->data[i]);
-    }
-    fputc('\n', s->out);
 }
 
 static void replay_report(void *user, hal_level_t level, hal_event_t event, int32_t detail)

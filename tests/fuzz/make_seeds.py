@@ -115,4 +115,10 @@ out = ("t_s,roll_rad,pitch_rad,yaw_rad,var_roll_rad2,var_pitch_rad2,var_yaw_rad2
 write("fuzz_parsers", "output_csv", b"\x01\x00" + out.encode())
 log = "".join(f"({k * 0.001:.6f}) vcan0 103#{(k * 1000):08X}{k:04X}0700\n" for k in range(5))
 write("fuzz_parsers", "candump_log", b"\x03\x00" + log.encode())
+
+# ---- fuzz_candump: candump log text as attekf-node replays it ----------------------------
+write("fuzz_candump", "lines", b"(1700000000.123456) vcan0 123#0011AAFF\n(0.000001) can0 1FFFFFFF#\n"
+      b"# comment\n(5.000000) vcan0 123#R\n(5.000000) vcan0 123##1AABB\n"
+      b"(5.1234567) x 7FF#0102030405060708\n")
+write("fuzz_candump", "replay_log", log.encode())
 print("seeds written under", os.path.join(HERE, "corpus"))
