@@ -7,7 +7,8 @@
 # N steps at 1 kHz (default N = 10^8 = 27.8 h of flight, K = 1, scalars f), J at a time
 # (default: the number of cores). Every step is checked (see soak.c); the script fails if any
 # flight fails. --bound-deg: attitude-error bound in benign time (default 30; 0 = report
-# only), benign from --settle-s seconds after the last fault on (default 15). Results: build/soak/soak-<scalar>-<seed>.txt, summary on stdout.
+# only), benign from --settle-s seconds after the last fault on (default 15). Results:
+# build/soak/soak-<scalar>-<seed>.txt, summary on stdout.
 # Time on this 2-core machine: about 3.5 s per 10^6 steps per core (float).
 set -uo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -20,7 +21,7 @@ while (($#)); do
     --jobs) JOBS="$2"; shift 2 ;;
     --bound-deg) BOUND="$2"; shift 2 ;;
     --settle-s) SETTLE="$2"; shift 2 ;;
-    -h|--help) sed -n '2,13p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,14p' "$0"; exit 0 ;;
     *) echo "soak.sh: unknown option '$1' (see --help)" >&2; exit 2 ;;
   esac
 done
