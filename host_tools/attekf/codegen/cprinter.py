@@ -92,7 +92,15 @@ def to_c(expr: sp.Expr, scales: Optional[Dict[str, float]] = None) -> str:
         if scales is None:
             factors = ([_const(coeff)] if coeff != 1 else []) + [to_c(f) for f in args]
         else:
-            sized = [(magnitude(f, scales), to_c(f, scales)) for f in args]
+            # a power is its factors repeated, so that dt^2 becomes dt, dt at the end of
+            # the product rather than one small, coarsely rounded factor
+            flat = []
+            for f in args:
+                if f.is_Pow and f.args[1].is_Integer and 1 < int(f.args[1]) <= 6:
+                    flat.extend([f.args[0]] * int(f.args[1]))
+                else:
+                    flat.append(f)
+            sized = [(magnitude(f, scales), to_c(f, scales)) for f in flat]
             if coeff != 1:
                 sized.append((abs(float(coeff)), _const(coeff)))
             factors = [text for _, text in sorted(sized, key=lambda st: -st[0])]  # stable
@@ -116,10 +124,13 @@ class CFunction:
     outputs: List[Tuple[str, sp.Expr]]  # (C lvalue, expression)
     prologue: List[str] = field(default_factory=list)  # C lines that bind inputs to symbols
     scales: Optional[Dict[str, float]] = None  # typical symbol magnitudes: see to_c
+    # symbols no shared subexpression may contain (a small one, e.g. dt: see attitude.py)
+    cse_ignore: List[sp.Symbol] = field(default_factory=list)
 
     def render(self) -> str:
         exprs = [e for _, e in self.outputs]
-        temps, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("t"), optimizations="basic")
+        temps, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("t"), optimizations="basic",
+                                ignore=self.cse_ignore)
         used = set()
         for e in list(reduced) + [t[1] for t in temps]:
             used |= {s.name for s in e.free_symbols}
