@@ -11,6 +11,7 @@ import sys
 from typing import Dict
 
 from .. import __version__
+from . import run_guarded
 from ..io import InputError, read_settings_json
 
 NAME = "bench"
@@ -170,55 +171,51 @@ def _check_ours_settings(methods, cfg) -> list:
 
 
 def run(args: argparse.Namespace) -> int:
-    from .. import bench
-    from ..native import NativeError, SettingsError
+    return run_guarded(_fail, lambda: _run(args))
 
+
+def _run(args: argparse.Namespace) -> int:
+    from .. import bench
+
+    cfg = bench.RunConfig(scalar=args.scalar, settings=_parse_settings(args),
+                          init_samples=args.init_samples, variants=_parse_variants(args.variant))
+    for item in args.fusion_set:
+        k, v = _parse_pair(item, "--fusion-set")
+        if k not in bench.FUSION_SETTINGS:
+            return _fail(f"--fusion-set {item!r}: unknown Fusion setting (known: "
+                         f"{', '.join(bench.FUSION_SETTINGS)})", 2)
+        cfg.fusion[k] = v
+    if args.list_methods:
+        for m in bench.all_methods(cfg).values():
+            print(f"  {m.key:32s} {m.dim}  {'default ' if m.default else '        '}{m.label}")
+        return 0
+    if args.jobs < 1:
+        return _fail("--jobs must be >= 1", 2)
+    if args.init_samples < 1:
+        return _fail("--init-samples must be >= 1", 2)
     try:
-        cfg = bench.RunConfig(scalar=args.scalar, settings=_parse_settings(args),
-                              init_samples=args.init_samples, variants=_parse_variants(args.variant))
-        for item in args.fusion_set:
-            k, v = _parse_pair(item, "--fusion-set")
-            if k not in bench.FUSION_SETTINGS:
-                return _fail(f"--fusion-set {item!r}: unknown Fusion setting (known: "
-                             f"{', '.join(bench.FUSION_SETTINGS)})", 2)
-            cfg.fusion[k] = v
-        if args.list_methods:
-            for m in bench.all_methods(cfg).values():
-                print(f"  {m.key:32s} {m.dim}  {'default ' if m.default else '        '}{m.label}")
-            return 0
-        if args.jobs < 1:
-            return _fail("--jobs must be >= 1", 2)
-        if args.init_samples < 1:
-            return _fail("--init-samples must be >= 1", 2)
-        try:
-            methods = bench.select_methods(args.methods, args.ablation, args.oracle_bias, cfg)
-        except ValueError as exc:
-            return _fail(str(exc), 2)
-        try:
-            paths = bench.find_trials(args.data, args.trials, args.limit)
-        except FileNotFoundError as exc:
-            return _fail(str(exc))
-        if not paths:
-            return _fail("no trial selected", 2)
-        missing = bench.missing_packages(methods)
-        if missing:
-            return _fail("; ".join(f"{k} needs the Python package '{p}'" for k, p in missing.items())
-                         + " (install host_tools/requirements.lock: scripts/setup.sh, or pip install "
-                         "'attekf[bench]'; or leave these out with --methods)")
-        methods = _check_ours_settings(methods, cfg)
-        for p in paths:   # fail early, with the file named, before the pool starts
-            rec = bench.read_recording(p)
-            if not rec.has_truth:
-                return _fail(f"{p}: no ground truth (opt_quat): nothing to score")
-            if rec.mag is None and any(not m.six_d for m in methods):
-                return _fail(f"{p}: no magnetometer: run 6D methods only (--methods 6d)")
-        return _bench(args, paths, methods, cfg)
-    except InputError as exc:
-        return _fail(str(exc))
-    except SettingsError as exc:
+        methods = bench.select_methods(args.methods, args.ablation, args.oracle_bias, cfg)
+    except ValueError as exc:
         return _fail(str(exc), 2)
-    except NativeError as exc:
-        return _fail(str(exc).replace("\n", " "))
+    try:
+        paths = bench.find_trials(args.data, args.trials, args.limit)
+    except FileNotFoundError as exc:
+        return _fail(str(exc))
+    if not paths:
+        return _fail("no trial selected", 2)
+    missing = bench.missing_packages(methods)
+    if missing:
+        return _fail("; ".join(f"{k} needs the Python package '{p}'" for k, p in missing.items())
+                     + " (install host_tools/requirements.lock: scripts/setup.sh, or pip install "
+                     "'attekf[bench]'; or leave these out with --methods)")
+    methods = _check_ours_settings(methods, cfg)
+    for p in paths:   # fail early, with the file named, before the pool starts
+        rec = bench.read_recording(p)
+        if not rec.has_truth:
+            return _fail(f"{p}: no ground truth (opt_quat): nothing to score")
+        if rec.mag is None and any(not m.six_d for m in methods):
+            return _fail(f"{p}: no magnetometer: run 6D methods only (--methods 6d)")
+    return _bench(args, paths, methods, cfg)
 
 
 def _bench(args, paths, methods, cfg) -> int:

@@ -11,6 +11,7 @@ import sys
 from typing import Dict, List
 
 from .. import __version__
+from . import run_guarded
 from ..io import InputError, read_output_csv, read_recording, read_settings_json, write_output_csv
 
 NAME = "eval"
@@ -110,26 +111,21 @@ def _list_settings(scalar: str) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..native import NativeError, SettingsError
+    return run_guarded(_fail, lambda: _run(args))
 
-    try:
-        if args.list_settings:
-            return _list_settings(args.scalar)
-        if not args.inputs:
-            return _fail("no recording given (see --help)", 2)
-        settings = _parse_settings(args)
-        files = _collect(args.inputs)
-        if args.output_csv and len(files) != 1:
-            return _fail(f"--output-csv scores one recording, {len(files)} given", 2)
-        if args.save_output and not args.out:
-            return _fail("--save-output needs --out DIR", 2)
-        return _evaluate(args, files, settings)
-    except InputError as exc:
-        return _fail(str(exc))
-    except SettingsError as exc:
-        return _fail(str(exc), 2)
-    except NativeError as exc:
-        return _fail(str(exc).replace("\n", " "))
+
+def _run(args: argparse.Namespace) -> int:
+    if args.list_settings:
+        return _list_settings(args.scalar)
+    if not args.inputs:
+        return _fail("no recording given (see --help)", 2)
+    settings = _parse_settings(args)
+    files = _collect(args.inputs)
+    if args.output_csv and len(files) != 1:
+        return _fail(f"--output-csv scores one recording, {len(files)} given", 2)
+    if args.save_output and not args.out:
+        return _fail("--save-output needs --out DIR", 2)
+    return _evaluate(args, files, settings)
 
 
 def _evaluate(args, files: List[str], settings: Dict[str, float]) -> int:
