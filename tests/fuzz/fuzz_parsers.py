@@ -107,10 +107,14 @@ def _h5_file(fdp: atheris.FuzzedDataProvider) -> None:
 def TestOneInput(data: bytes) -> None:
     fdp = atheris.FuzzedDataProvider(data)
     kind = fdp.ConsumeIntInRange(0, 3)
-    if kind == 0:
-        path = CSV_REC
-        with open(path, "wb") as fh:
-            fh.write(_csv_bytes(fdp))
+    if kind in (0, 2):  # a recording: CSV or HDF5
+        if kind == 0:
+            path = CSV_REC
+            with open(path, "wb") as fh:
+                fh.write(_csv_bytes(fdp))
+        else:
+            path = H5
+            _h5_file(fdp)
         try:
             rec = aio.read_recording(path, check_units=fdp.ConsumeBool())
         except aio.InputError as e:
@@ -130,15 +134,6 @@ def TestOneInput(data: bytes) -> None:
         assert n > 0 and out.euler.shape == (n, 3) and np.all(np.diff(out.t) > 0)
         if out.var is not None:
             assert out.var.shape == (n, 3) and not np.any(out.var < 0)
-    elif kind == 2:
-        path = H5
-        _h5_file(fdp)
-        try:
-            rec = aio.read_recording(path, check_units=fdp.ConsumeBool())
-        except aio.InputError as e:
-            _one_line(str(e), path)
-            return
-        _check_recording(rec)
     else:
         path = LOGS[fdp.ConsumeIntInRange(0, 2)]
         with open(path, "wb") as fh:
