@@ -1,15 +1,33 @@
 """The ``attekf`` command: one entry point, one sub-command per module in
-``attekf/commands`` (each module defines NAME, HELP, add_arguments(parser) and run(args))."""
+``attekf/commands`` (each module defines NAME, HELP, add_arguments(parser) and run(args)).
+
+Every command runs through :func:`attekf.commands.run_command`, the one place where errors
+become a one-line message and an exit status (attekf.errors)."""
 
 from __future__ import annotations
 
 import argparse
 import importlib
 import pkgutil
+import signal
 import sys
-from typing import List, Optional
+import threading
+from typing import List, NoReturn, Optional
 
 from . import __version__, commands
+
+
+class UsageExit(SystemExit):
+    """argparse's usage error (already printed): main() returns 2 for it."""
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse with its usage errors on one line (``attekf eval: error: ...``), exit 2."""
+
+    def error(self, message: str) -> NoReturn:
+        msg = " ".join(message.split())
+        sys.stderr.write(f"{self.prog}: error: {msg} (see {self.prog} --help)\n")
+        raise UsageExit(2)
 
 
 def _command_modules():
@@ -22,14 +40,16 @@ def _command_modules():
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(
+    ap = Parser(
         prog="attekf",
         description="Host tools for the attitude EKF: simulate recordings, run the C estimator "
         "over them, replay them onto a CAN bus, record the estimator's output, evaluate "
         "against ground truth and benchmark.",
+        epilog="Exit status: 0 done, 1 a file or device could not be used, 2 usage error, "
+               "130 interrupted (docs/host_tools.md).",
     )
     ap.add_argument("--version", action="version", version=f"attekf {__version__}")
-    sub = ap.add_subparsers(dest="command", metavar="COMMAND")
+    sub = ap.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
     sub.required = True
     for mod in _command_modules():
         p = sub.add_parser(mod.NAME, help=mod.HELP, description=getattr(mod, "DESCRIPTION", mod.HELP),
@@ -40,13 +60,27 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
+def _terminate(_sig, _frame):
+    raise KeyboardInterrupt
+
+
 def main(argv: Optional[List[str]] = None) -> int:
-    args = build_parser().parse_args(argv)
+    """Runs one command; returns its exit status (--help and --version exit 0 through
+    SystemExit, as argparse does)."""
     try:
-        return int(args._run(args) or 0)
-    except KeyboardInterrupt:
-        print("attekf: interrupted", file=sys.stderr)
-        return 130
+        args = build_parser().parse_args(argv)
+    except UsageExit as exc:
+        return int(exc.code)
+    old = None
+    if threading.current_thread() is threading.main_thread():
+        # SIGTERM cleans up like Ctrl-C (temporary outputs removed); record and replay
+        # install their own handler while they listen or send
+        old = signal.signal(signal.SIGTERM, _terminate)
+    try:
+        return commands.run_command(args.command, lambda: args._run(args))
+    finally:
+        if old is not None:
+            signal.signal(signal.SIGTERM, old)
 
 
 if __name__ == "__main__":

@@ -1,18 +1,160 @@
-"""Sub-commands of ``attekf``: one module each (NAME, HELP, add_arguments, run)."""
+"""Sub-commands of ``attekf``: one module each (NAME, HELP, add_arguments, run).
+
+Shared here: :func:`run_command`, the one mapping from errors to a one-line message and an
+exit status (attekf.errors), and the argument types and NAME=VALUE parsing the commands use
+alike."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+from typing import Callable, Dict, Iterable, Tuple
+
+from ..errors import AttekfError, Interrupted, UsageError
+
+
+def _say(command: str, text: str) -> None:
+    try:
+        print(f"attekf {command}: {text}", file=sys.stderr, flush=True)
+    except (OSError, ValueError):
+        pass   # stderr gone: the exit status still tells
+
+
+def run_command(command: str, body: Callable[[], int]) -> int:
+    """Runs body() and turns every error into one line on stderr and an exit status:
+    UsageError and the C library's SettingsError 2; InputError, OutputError, DeviceError,
+    the C library's NativeError, a missing CAN database 1; Ctrl-C / SIGTERM 130. Anything
+    else is a defect of the tools: one line naming the exception, exit 1 (the traceback with
+    ATTEKF_TRACEBACK=1)."""
+    from ..canproto import ProtocolError
+    from ..native import NativeError, SettingsError
+
+    try:
+        return int(body() or 0)
+    except Interrupted as exc:
+        _say(command, f"interrupted: {exc}")
+        return exc.exit_code
+    except KeyboardInterrupt:
+        _say(command, "interrupted: nothing written (outputs are only put in place when complete)")
+        return Interrupted.exit_code
+    except AttekfError as exc:
+        _say(command, f"error: {exc}")
+        return exc.exit_code
+    except SettingsError as exc:
+        _say(command, f"error: {' '.join(str(exc).split())}")
+        return 2
+    except (NativeError, ProtocolError) as exc:
+        _say(command, f"error: {' '.join(str(exc).split())}")
+        return 1
+    except BrokenPipeError:
+        # the reader of stdout went away (attekf eval ... | head): no traceback at exit
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+        except (OSError, ValueError):
+            pass
+        return 1
+    except MemoryError:
+        _say(command, "error: out of memory")
+        return 1
+    except Exception as exc:  # a defect: still one line, but say that it is one
+        if os.environ.get("ATTEKF_TRACEBACK"):
+            raise
+        text = " ".join(str(exc).split()) or "(no message)"
+        _say(command, f"error: internal error {type(exc).__name__}: {text} "
+                      "(a defect of attekf; ATTEKF_TRACEBACK=1 shows where)")
+        return 1
 
 
 def run_guarded(fail, body):
-    """Runs body() and turns the errors every command reports alike into exit codes: bad
-    input 1, bad settings 2, a failure of the native library 1 (on one line). fail(msg,
-    code) prints the command's error line and returns code."""
-    from ..io import InputError
+    """Runs body(), mapping the errors every command reports alike to fail(msg, code) (kept
+    for callers of the earlier interface; commands now go through run_command)."""
     from ..native import NativeError, SettingsError
 
     try:
         return body()
-    except InputError as exc:
-        return fail(str(exc))
+    except AttekfError as exc:
+        return fail(str(exc), exc.exit_code)
     except SettingsError as exc:
         return fail(str(exc), 2)
     except NativeError as exc:
-        return fail(str(exc).replace("\n", " "))
+        return fail(" ".join(str(exc).split()))
+
+
+# ---------------------------------------------------------------------------------------------
+# Argument types (argparse reports their ValueError as "invalid <name> value")
+# ---------------------------------------------------------------------------------------------
+def finite_float(text: str) -> float:
+    v = float(text)
+    if not math.isfinite(v):
+        raise ValueError(text)
+    return v
+
+
+def nonneg_float(text: str) -> float:
+    v = finite_float(text)
+    if v < 0:
+        raise ValueError(text)
+    return v
+
+
+def positive_float(text: str) -> float:
+    v = finite_float(text)
+    if not v > 0:
+        raise ValueError(text)
+    return v
+
+
+def nonneg_int(text: str) -> int:
+    v = int(text)
+    if v < 0:
+        raise ValueError(text)
+    return v
+
+
+def positive_int(text: str) -> int:
+    v = int(text)
+    if v < 1:
+        raise ValueError(text)
+    return v
+
+
+finite_float.__name__ = "number"
+nonneg_float.__name__ = "number >= 0"
+positive_float.__name__ = "number > 0"
+nonneg_int.__name__ = "integer >= 0"
+positive_int.__name__ = "integer >= 1"
+
+
+def parse_pair(item: str, what: str) -> Tuple[str, float]:
+    """NAME=VALUE of a command-line option -> (name, finite float); UsageError otherwise."""
+    name, sep, value = item.partition("=")
+    if not sep or not name.strip():
+        raise UsageError(f"{what} {item!r}: expected NAME=VALUE")
+    try:
+        v = float(value)
+    except ValueError:
+        raise UsageError(f"{what} {item!r}: '{value.strip()}' is not a number") from None
+    if not math.isfinite(v):
+        raise UsageError(f"{what} {item!r}: '{value.strip()}' is not a finite number")
+    return name.strip(), v
+
+
+def parse_pairs(items: Iterable[str], what: str) -> Dict[str, float]:
+    return dict(parse_pair(i, what) for i in items)
+
+
+def check_settings(scalar: str, settings: Dict[str, float], source: str = "") -> None:
+    """Lets the C library check estimator settings now (before any work); a refusal is a
+    SettingsError (exit 2), prefixed with the file the settings came from."""
+    from .. import native
+
+    try:
+        native._make_settings(native.load(scalar), settings)
+    except native.SettingsError as exc:
+        if source:
+            raise native.SettingsError(f"{source}: {exc}") from None
+        raise
+
