@@ -19,14 +19,17 @@ angles ZYX (roll, pitch, yaw) of the same rotation.
 
 from __future__ import annotations
 
-import csv
 import json
 import math
 import os
 from dataclasses import dataclass, field
-from typing import Callable, Dict, List, Optional, Sequence
+from typing import Callable, Dict, List, Optional
 
 import numpy as np
+
+from .csvtext import PROGRESS_ROWS, comment_lines, parse_csv
+from .errors import InputError, OutputError
+from .outputs import atomic_path
 
 # ---------------------------------------------------------------------------------------------
 # Column names (CSV). Units are part of the name so that a file documents itself.
@@ -43,16 +46,15 @@ COLS_VAR = ("var_roll_rad2", "var_pitch_rad2", "var_yaw_rad2")
 COL_FLAGS = "flags"
 COL_STATUS = "status"
 
-PROGRESS_ROWS = 10000  # CSV rows between progress callbacks
-
 # Plausibility limits used to catch unit mistakes (by magnitude; docs/host_tools.md).
 GYRO_MAX_RAD_S = 70.0        # 4000 deg/s, the largest full scale of common MEMS gyroscopes
 ACC_MEDIAN_RANGE_M_S2 = (2.0, 30.0)   # |a| at rest is 9.81; in g it would be ~1, in mg ~1000
 MAG_MEDIAN_RANGE_UT = (5.0, 200.0)    # Earth: 25..66 uT; gauss would be ~0.5, nT or mG ~1e3..1e4
 
 
-class InputError(Exception):
-    """A file that cannot be used as given. str(err) is one line naming the file and where."""
+__all__ = ["InputError", "OutputError", "Recording", "EstimatorOutput", "read_recording",
+           "read_output_csv", "read_settings_json", "write_recording", "write_recording_csv",
+           "write_recording_hdf5", "write_output_csv", "validate_recording"]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -149,19 +151,31 @@ class EstimatorOutput:
 # ---------------------------------------------------------------------------------------------
 # Reading recordings
 # ---------------------------------------------------------------------------------------------
-def read_settings_json(path: str) -> dict:
-    """A JSON object {setting name: value} from a file (estimator settings for the
-    commands' --settings); InputError with a one-line reason otherwise."""
+def read_settings_json(path: str) -> Dict[str, float]:
+    """A JSON object {setting name: number} from a file (estimator settings for the
+    commands' --settings); InputError naming the file and the line or the setting otherwise.
+    Whether the names and values are ones the filter accepts is the C library's to say."""
+    from .csvtext import read_text_lines
+    if os.path.isdir(path):
+        raise InputError(f"{path}: is a directory, expected a JSON file")
+    text = "\n".join(read_text_lines(path))
     try:
-        with open(path, encoding="utf-8") as fh:
-            data = json.load(fh)
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read: {exc.strerror or exc}") from None
+        data = json.loads(text, parse_constant=lambda c: float("nan"))
     except json.JSONDecodeError as exc:
         raise InputError(f"{path}: line {exc.lineno}: invalid JSON: {exc.msg}") from None
+    except RecursionError:
+        raise InputError(f"{path}: invalid JSON: nested too deeply") from None
     if not isinstance(data, dict):
-        raise InputError(f"{path}: expected a JSON object {{name: value}}")
-    return data
+        raise InputError(f"{path}: expected a JSON object {{name: value}}, "
+                         f"got {type(data).__name__}")
+    out: Dict[str, float] = {}
+    for name, value in data.items():
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise InputError(f"{path}: setting '{name}': {json.dumps(value)[:40]} is not a number")
+        if not math.isfinite(float(value)):
+            raise InputError(f"{path}: setting '{name}': {value} is not a finite number")
+        out[str(name)] = float(value) if isinstance(value, float) else int(value)
+    return out
 
 
 def read_recording(path: str, check_units: bool = True,
@@ -188,129 +202,17 @@ def read_recording(path: str, check_units: bool = True,
     return rec
 
 
-def _open_text(path: str):
-    try:
-        return open(path, "r", newline="", encoding="utf-8")
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read: {exc.strerror or exc}") from None
-
-
-def _is_number(text: str) -> bool:
-    try:
-        float(text)
-        return True
-    except ValueError:
-        return False
-
-
-def _parse_csv(path: str, required: Sequence[str], optional_groups: Sequence[Sequence[str]],
-               allow_empty: Dict[str, str], only_known: Optional[Sequence[str]] = None,
-               progress: Optional[Callable[[int], None]] = None) -> tuple:
-    """Reads a headed CSV into float columns.
-
-    Lines starting with '#' before the header are comments. required: columns that must be
-    present; optional_groups: column groups that are present all together or not at all.
-    allow_empty: column -> group name; an empty cell in such a column reads as NaN (the
-    whole group of that row must then be empty), every other empty or non-numeric cell is an
-    error naming the line and the column. only_known: parse just these columns (others are
-    ignored), else every column. Returns (columns dict name -> float array,
-    header list, line numbers array).
-    """
-    with _open_text(path) as fh:
-        try:
-            lines = fh.read().splitlines()
-        except UnicodeDecodeError as exc:
-            raise InputError(f"{path}: not a text file ({exc.reason} at byte {exc.start})") from None
-    header_idx = None
-    for i, line in enumerate(lines):
-        if line.strip() and not line.lstrip().startswith("#"):
-            header_idx = i
-            break
-    if header_idx is None:
-        raise InputError(f"{path}: empty file (a header line is required)")
-    header = [h.strip() for h in next(csv.reader([lines[header_idx]]))]
-    if _is_number(header[0]):
-        raise InputError(f"{path}: line {header_idx + 1}: no header (first line is numeric); "
-                         f"the first line must name the columns, e.g. {','.join(required)}")
-    if len(set(header)) != len(header):
-        dup = sorted({h for h in header if header.count(h) > 1})
-        raise InputError(f"{path}: line {header_idx + 1}: duplicate column(s) {', '.join(dup)}")
-    missing = [c for c in required if c not in header]
-    if missing:
-        raise InputError(f"{path}: missing column(s) {', '.join(missing)} "
-                         f"(header has: {', '.join(header)})")
-    for group in optional_groups:
-        present = [c for c in group if c in header]
-        if present and len(present) != len(group):
-            absent = [c for c in group if c not in header]
-            raise InputError(f"{path}: column(s) {', '.join(absent)} missing "
-                             f"(needed together with {', '.join(present)})")
-    wanted = [c for c in header if c and (only_known is None or c in only_known)]
-    index = {c: header.index(c) for c in wanted}
-    rows: List[List[float]] = []
-    line_numbers: List[int] = []
-    ncol = len(header)
-    for i in range(header_idx + 1, len(lines)):
-        if progress is not None and (i - header_idx) % PROGRESS_ROWS == 0:
-            progress(PROGRESS_ROWS)
-        line = lines[i]
-        if not line.strip():
-            continue  # blank lines (e.g. a trailing newline) carry no sample
-        cells = next(csv.reader([line]))
-        lineno = i + 1
-        if len(cells) != ncol:
-            raise InputError(f"{path}: line {lineno}: {len(cells)} fields, header has {ncol}")
-        values = []
-        for name in wanted:
-            cell = cells[index[name]].strip()
-            if cell == "":
-                if name in allow_empty:
-                    values.append(math.nan)
-                    continue
-                raise InputError(f"{path}: line {lineno}: column {name}: empty cell")
-            try:
-                v = float(cell)
-            except ValueError:
-                raise InputError(f"{path}: line {lineno}: column {name}: "
-                                 f"'{cell}' is not a number") from None
-            if not math.isfinite(v):
-                raise InputError(f"{path}: line {lineno}: column {name}: '{cell}' is not finite "
-                                 "(leave the cell empty where a value may be absent)")
-            values.append(v)
-        rows.append(values)
-        line_numbers.append(lineno)
-    if not rows:
-        raise InputError(f"{path}: no data rows after the header")
-    data = np.asarray(rows, dtype=np.float64)
-    cols = {name: data[:, k] for k, name in enumerate(wanted)}
-    lines_arr = np.asarray(line_numbers)
-    # A group of optional cells is empty all together or not at all.
-    groups: Dict[str, List[str]] = {}
-    for name, g in allow_empty.items():
-        if name in cols:
-            groups.setdefault(g, []).append(name)
-    for g, names in groups.items():
-        empty = np.stack([np.isnan(cols[n]) for n in names], axis=1)
-        partial = np.any(empty, axis=1) & ~np.all(empty, axis=1)
-        if partial.any():
-            k = int(np.argmax(partial))
-            which = [n for n, e in zip(names, empty[k]) if e]
-            raise InputError(f"{path}: line {lines_arr[k]}: column {which[0]}: empty cell while "
-                             f"other {g} cells of the row are set (all empty or all set)")
-    return cols, header, lines_arr
-
-
 def _read_recording_csv(path: str, progress=None) -> Recording:
     optional_empty = {c: "magnetometer" for c in COLS_MAG}
     optional_empty.update({c: "quaternion" for c in COLS_QUAT})
     known = (COL_T,) + COLS_GYR + COLS_ACC + COLS_MAG + COLS_QUAT + (COL_MOVEMENT,)
-    cols, header, lines = _parse_csv(path, (COL_T,) + COLS_GYR + COLS_ACC,
-                                     (COLS_MAG, COLS_QUAT), optional_empty, only_known=known,
-                                     progress=progress)
+    cols, header, lines, meta = parse_csv(path, (COL_T,) + COLS_GYR + COLS_ACC,
+                                          (COLS_MAG, COLS_QUAT), optional_empty, only_known=known,
+                                          progress=progress)
     t = cols[COL_T]
     _check_time(path, t, lambda k: f"line {lines[k]}")
     rec = Recording(t=t, gyr=np.stack([cols[c] for c in COLS_GYR], axis=1),
-                    acc=np.stack([cols[c] for c in COLS_ACC], axis=1), source=path)
+                    acc=np.stack([cols[c] for c in COLS_ACC], axis=1), source=path, meta=meta)
     if COLS_MAG[0] in cols:
         rec.mag = np.stack([cols[c] for c in COLS_MAG], axis=1)
     if COLS_QUAT[0] in cols:
@@ -518,8 +420,9 @@ def write_recording_csv(path: str, rec: Recording,
         header.append(COL_MOVEMENT)
         blocks.append(rec.movement.astype(np.float64)[:, None])
     data = np.concatenate(blocks, axis=1)
-    _makedirs_for(path)
-    with open(path, "w", newline="", encoding="utf-8") as fh:
+    with atomic_path(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as fh:
+        for key, value in comment_lines(rec.meta):
+            fh.write(f"# {key}: {value}\n")
         fh.write(",".join(header) + "\n")
         for k, row in enumerate(data):
             if progress is not None and k % PROGRESS_ROWS == PROGRESS_ROWS - 1:
@@ -535,9 +438,8 @@ def write_recording_hdf5(path: str, rec: Recording) -> None:
     sampling_rate; plus dataset 't' when the timestamps are not i / sampling_rate, and the
     entries of rec.meta as attributes."""
     h5py = _h5()
-    _makedirs_for(path)
     rate = rec.rate_hz or _rate_from_time(rec.t)
-    with h5py.File(path, "w") as fh:
+    with atomic_path(path) as tmp, h5py.File(tmp, "w") as fh:
         fh.create_dataset("imu_gyr", data=rec.gyr)
         fh.create_dataset("imu_acc", data=rec.acc)
         if rec.mag is not None:
@@ -562,13 +464,9 @@ def write_recording(path: str, rec: Recording, progress: Optional[Callable[[int]
     elif ext in (".hdf5", ".h5"):
         write_recording_hdf5(path, rec)
     else:
-        raise InputError(f"{path}: unknown recording format '{ext or '(none)'}' "
+        from .errors import UsageError
+        raise UsageError(f"{path}: unknown recording format '{ext or '(none)'}' "
                          "(expected .csv, .hdf5 or .h5)")
-
-
-def _makedirs_for(path: str) -> None:
-    d = os.path.dirname(os.path.abspath(path))
-    os.makedirs(d, exist_ok=True)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -608,8 +506,7 @@ def write_output_csv(path: str, t: np.ndarray, euler: np.ndarray, var: Optional[
         header.append(name)
         cols.append(a)
         kinds.append("i" if np.issubdtype(a.dtype, np.integer) else "f")
-    _makedirs_for(path)
-    with open(path, "w", newline="", encoding="utf-8") as fh:
+    with atomic_path(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as fh:
         fh.write(",".join(header) + "\n")
         for i in range(n):
             cells = []
@@ -628,7 +525,9 @@ def read_output_csv(path: str) -> EstimatorOutput:
         raise InputError(f"{path}: no such file")
     optional_empty = {c: "estimate" for c in COLS_EULER}
     optional_empty.update({c: "variance" for c in COLS_VAR})
-    cols, header, lines = _parse_csv(path, (COL_T,) + COLS_EULER, (COLS_VAR,), optional_empty)
+    cols, header, lines, _meta = parse_csv(path, (COL_T,) + COLS_EULER,
+                                           (COLS_VAR, (COL_FLAGS,), (COL_STATUS,)), optional_empty,
+                                           keep_other=True)
     t = cols[COL_T]
     _check_time(path, t, lambda k: f"line {lines[k]}")
     out = EstimatorOutput(t=t, euler=np.stack([cols[c] for c in COLS_EULER], axis=1), source=path)
@@ -648,5 +547,5 @@ def read_output_csv(path: str) -> EstimatorOutput:
                                  f"(expected an integer in 0..{limit - 1})")
             setattr(out, name, a.astype(np.uint32 if name == COL_FLAGS else np.uint8))
     known = {COL_T, *COLS_EULER, *COLS_VAR, COL_FLAGS, COL_STATUS}
-    out.extra = {c: cols[c] for c in header if c and c not in known}
+    out.extra = {c: cols[c] for c in header if c and c not in known and c in cols}
     return out
