@@ -14,6 +14,9 @@ from typing import Dict, List, Optional
 
 import numpy as np
 
+from . import nonneg_float, nonneg_int
+from ..errors import Interrupted, UsageError
+
 NAME = "record"
 HELP = "log a CAN bus (python-can loggers) and decode the estimator's outputs to CSV"
 DESCRIPTION = """\
@@ -26,14 +29,22 @@ hal/can/attekf.dbc:
                      frame when that was on the bus, else the bus time), roll/pitch/yaw_rad,
                      var_*_rad2 (sigma^2), flags (ATT_FLAG_*), and seq, out_index, node_flags
                      (HAL_FLAG_*), rate_*_rad_s, rx_time_s, latency_s (IMU_SYNC -> ATT_EULER on
-                     the bus; empty if unknown);
+                     the bus; empty if unknown); angles, variances and rates are empty while
+                     the node reports Aligned clear (it sends zeros then);
   --inputs-csv FILE  the IMU samples seen on the bus, as a recording CSV (samples without gyro or
                      accelerometer are left out and counted).
 --stats writes counts, sequence gaps of inputs and outputs, the bus latency percentiles and the
 node's last published counters as JSON.
 
-Stops on Ctrl-C / SIGTERM, after --duration, after --idle seconds without frames, or after
---count frames. Receive errors (interface going down) are counted and listening goes on.
+Listening stops on Ctrl-C / SIGTERM, after --duration, after --idle seconds without frames,
+or after --count frames; the outputs are then written. Receive errors (interface going down)
+are counted and listening goes on. With --from-log, Ctrl-C abandons the run instead. Every
+output is written under a temporary name and renamed when complete, so an interrupted or
+failed run leaves none (and an interface that cannot be opened leaves no empty -o file).
+
+python-can's 'virtual' interface connects only buses inside one process: nothing another
+program (attekf replay, attekf-node) sends reaches `attekf record -i virtual`. Between
+processes use socketcan (vcan0: docs/hil.md) or udp_multicast.
 
 examples:
   attekf record -i socketcan -c vcan0 -o bus.log --csv att.csv
@@ -55,17 +66,17 @@ def add_arguments(p) -> None:
     src = p.add_argument_group("source (one of)")
     src.add_argument("-i", "--interface", help="python-can interface: socketcan, virtual, ...")
     src.add_argument("-c", "--channel", help="channel (vcan0, can0, ...)")
-    src.add_argument("--bitrate", type=int, help="bitrate, for interfaces that set it")
+    src.add_argument("--bitrate", type=nonneg_int, help="bitrate, for interfaces that set it")
     src.add_argument("--from-log", metavar="FILE", help="decode an existing CAN log instead of a bus")
     p.add_argument("-o", "--output", metavar="LOG", help="log every frame to this file")
     p.add_argument("--csv", metavar="FILE", help="decoded attitude outputs")
     p.add_argument("--inputs-csv", metavar="FILE", help="decoded IMU input samples (recording CSV)")
     p.add_argument("--stats", metavar="FILE", help="counts, gaps, latency and node counters as JSON")
-    p.add_argument("--duration", type=float, default=0.0, help="stop after this many seconds")
-    p.add_argument("--idle", type=float, default=0.0,
+    p.add_argument("--duration", type=nonneg_float, default=0.0, help="stop after this many seconds")
+    p.add_argument("--idle", type=nonneg_float, default=0.0,
                    help="stop after this many seconds without a frame (once one was seen)")
-    p.add_argument("--count", type=int, default=0, help="stop after this many frames")
-    p.add_argument("--rcvbuf", type=int, default=8 * 1024 * 1024,
+    p.add_argument("--count", type=nonneg_int, default=0, help="stop after this many frames")
+    p.add_argument("--rcvbuf", type=nonneg_int, default=8 * 1024 * 1024,
                    help="socketcan: receive buffer in bytes (default 8 MiB; bursts overflow the "
                         "kernel default)")
     p.add_argument("--ready-file", metavar="FILE", help="create FILE once listening (for scripts)")
@@ -166,6 +177,10 @@ class Recorder:
         euler = np.array([r.euler for r in rows], dtype=np.float64).reshape(n, 3)
         sigma = np.array([r.sigma for r in rows], dtype=np.float64).reshape(n, 3)
         rates = np.array([r.rates for r in rows], dtype=np.float64).reshape(n, 3)
+        # before alignment the node sends zeros (docs/can_protocol.md): no estimate, empty cells
+        aligned = np.array([bool(r.flags & self.cp.STATUS_BITS["Aligned"]) for r in rows], bool)
+        for a in (euler, sigma, rates):
+            a[~aligned] = np.nan
         extra = {
             "seq": np.array([r.seq for r in rows], dtype=np.int64),
             "out_index": np.array([r.index for r in rows], dtype=np.int64),
@@ -292,60 +307,89 @@ def record_bus(rec: Recorder, bus, logger, duration: float, idle: float, count: 
         pb.close()
 
 
+VIRTUAL_WARNING = ("warning: python-can's 'virtual' interface reaches only buses in this same "
+                   "process: frames another program sends (attekf replay, attekf-node) never "
+                   "arrive here; between processes use -i socketcan -c vcan0 or -i udp_multicast")
+
+
 def run(args) -> int:
+    from ..canlog import LogStats, check_log_name, read_frames
+    from ..outputs import Outputs, check_file
+    from .replay import check_interface, open_bus
+
     if (args.from_log is None) == (args.interface is None):
-        print("attekf record: give either -i/--interface (with -c/--channel) or --from-log", file=sys.stderr)
-        return 2
+        raise UsageError("give either -i/--interface (with -c/--channel) or --from-log")
     if not (args.output or args.csv or args.inputs_csv or args.stats):
-        print("attekf record: nothing to write: give -o, --csv, --inputs-csv and/or --stats", file=sys.stderr)
-        return 2
-    if args.duration < 0 or args.idle < 0 or args.count < 0:
-        print("attekf record: --duration, --idle and --count must be >= 0", file=sys.stderr)
-        return 2
-    import can
-    from ..canproto import ProtocolError
-    from ..io import InputError
-    from .replay import ReplayError, open_bus
-    try:
+        raise UsageError("nothing to write: give -o, --csv, --inputs-csv and/or --stats")
+    if args.interface is not None:
+        check_interface(args.interface)
+    with Outputs() as out:
+        out.inputs([args.from_log])
+        if args.output:
+            check_log_name(args.output, "-o", output=True)
+        for path, what in ((args.output, "-o"), (args.csv, "--csv"), (args.inputs_csv, "--inputs-csv"),
+                           (args.stats, "--stats")):
+            out.file(path, what)
+        if args.ready_file:
+            check_file(args.ready_file, "--ready-file")
+        if args.from_log:
+            check_log_name(args.from_log, "--from-log")
         rec = Recorder()
-    except ProtocolError as e:
-        print(f"attekf record: {e}", file=sys.stderr)
-        return 1
-    logger = None
-    stop_flag = [False]
+        stop_flag = [False]
+        if args.from_log:
+            logstats = LogStats()
+            frames = read_frames(args.from_log, stop=stop_flag, stats=logstats)
+            _record(args, rec, None, frames, out, stop_flag)
+            if stop_flag[0]:
+                raise Interrupted(f"after {rec.frames} frames of {args.from_log}: nothing written "
+                                  "(outputs are only put in place when complete)")
+        else:
+            bus = open_bus(args.interface, args.channel, args.bitrate)
+            if args.interface == "virtual":
+                print(f"attekf record: {VIRTUAL_WARNING}", file=sys.stderr)
+            _record(args, rec, bus, None, out, stop_flag)
+        _write(args, rec, out)
+        out.commit()
+    st = rec.stats()
+    if not args.quiet:
+        lat = st["latency_us"]
+        print(f"attekf record: {st['frames']} frames, {st['input_samples']} input samples "
+              f"({st['input_seq_missing']} missing by Seq), {st['outputs']} outputs "
+              f"({st['output_index_missing']} missing by OutIndex), {st['heartbeats']} heartbeats"
+              + (f"; latency p50 {lat['p50']} us, p99 {lat['p99']} us" if lat["count"] else ""),
+              file=sys.stderr)
+    if args.interface == "virtual" and st["frames"] == 0:
+        print(f"attekf record: received no frames; {VIRTUAL_WARNING}", file=sys.stderr)
+    return 0
+
+
+def _record(args, rec: Recorder, bus, frames, out, stop_flag: List[bool]) -> None:
+    """Feeds the recorder from the log (frames) or the bus until the end or a stop, logging
+    every frame to the -o temporary file. SIGINT/SIGTERM set stop_flag meanwhile."""
+    import can
 
     def on_signal(_sig, _frm):
         stop_flag[0] = True
     old_int = _set_signal(signal.SIGINT, on_signal)
     old_term = _set_signal(signal.SIGTERM, on_signal)
+    logger = None
     try:
         if args.output:
-            os.makedirs(os.path.dirname(os.path.abspath(args.output)), exist_ok=True)
+            from ..errors import OutputError
             try:
-                logger = can.Logger(args.output)
+                logger = can.Logger(out.temp(args.output))
             except (ValueError, OSError) as e:
-                print(f"attekf record: {args.output}: cannot write a CAN log: {e}", file=sys.stderr)
-                return 1
-        if args.from_log:
-            if not os.path.exists(args.from_log):
-                print(f"attekf record: {args.from_log}: no such file", file=sys.stderr)
-                return 1
-            try:
-                for m in can.LogReader(args.from_log):
-                    if m.is_error_frame or m.is_remote_frame:
-                        continue
+                raise OutputError(f"{args.output}: cannot write a CAN log: {e}") from None
+        if frames is not None:
+            from ..progress import bar
+            with bar(None, "read", quiet=args.quiet, unit="frame") as pb:
+                for k, (t, fid, data, ext) in enumerate(frames):
                     if logger is not None:
-                        logger(m)
-                    rec.feed(float(m.timestamp), int(m.arbitration_id), bytes(m.data), bool(m.is_extended_id))
-            except (OSError, ValueError) as e:
-                print(f"attekf record: {args.from_log}: cannot read as a CAN log: {e}", file=sys.stderr)
-                return 1
+                        logger(can.Message(timestamp=t, arbitration_id=fid, data=data, is_extended_id=ext))
+                    rec.feed(t, fid, data, ext)
+                    if k % 4096 == 4095:
+                        pb.update(4096)
         else:
-            try:
-                bus = open_bus(args.interface, args.channel, args.bitrate)
-            except ReplayError as e:
-                print(f"attekf record: {e}", file=sys.stderr)
-                return 1
             try:
                 got = _enlarge_rcvbuf(bus, args.rcvbuf)
                 if args.ready_file:
@@ -355,37 +399,30 @@ def run(args) -> int:
                           + (f" (receive buffer {got} bytes)" if got else ""), file=sys.stderr)
                 record_bus(rec, bus, logger, args.duration, args.idle, args.count, stop_flag, args.quiet)
             finally:
-                bus.shutdown()
+                try:
+                    bus.shutdown()
+                except Exception:  # noqa: BLE001 - a failing shutdown must not hide the recording
+                    pass
     finally:
         if logger is not None:
             logger.stop()
-        if old_int is not None:
-            _set_signal(signal.SIGINT, old_int)
-        if old_term is not None:
-            _set_signal(signal.SIGTERM, old_term)
+        for sig, old in ((signal.SIGINT, old_int), (signal.SIGTERM, old_term)):
+            if old is not None:
+                _set_signal(sig, old)
 
-    try:
-        if args.csv:
-            what = rec.write_outputs_csv(args.csv)
-            if not args.quiet:
-                print(f"attekf record: {len(rec.out.rows)} outputs to {args.csv} (t_s = {what})", file=sys.stderr)
-        if args.inputs_csv:
-            left = rec.write_inputs_csv(args.inputs_csv)
-            if not args.quiet:
-                print(f"attekf record: {len(rec.inp.samples) - left} input samples to {args.inputs_csv}"
-                      + (f" ({left} without gyro or accelerometer left out)" if left else ""), file=sys.stderr)
-    except (InputError, ValueError, OSError) as e:
-        print(f"attekf record: {e}", file=sys.stderr)
-        return 1
-    st = rec.stats()
+
+def _write(args, rec: Recorder, out) -> None:
+    """The decoded outputs, to their temporary files."""
+    if args.csv:
+        what = rec.write_outputs_csv(out.temp(args.csv))
+        if not args.quiet:
+            print(f"attekf record: {len(rec.out.rows)} outputs to {args.csv} (t_s = {what})", file=sys.stderr)
+    if args.inputs_csv:
+        left = rec.write_inputs_csv(out.temp(args.inputs_csv))
+        if not args.quiet:
+            print(f"attekf record: {len(rec.inp.samples) - left} input samples to {args.inputs_csv}"
+                  + (f" ({left} without gyro or accelerometer left out)" if left else ""), file=sys.stderr)
     if args.stats:
-        with open(args.stats, "w", encoding="utf-8") as fh:
-            json.dump(st, fh, indent=2)
-    if not args.quiet:
-        lat = st["latency_us"]
-        print(f"attekf record: {st['frames']} frames, {st['input_samples']} input samples "
-              f"({st['input_seq_missing']} missing by Seq), {st['outputs']} outputs "
-              f"({st['output_index_missing']} missing by OutIndex), {st['heartbeats']} heartbeats"
-              + (f"; latency p50 {lat['p50']} us, p99 {lat['p99']} us" if lat["count"] else ""),
-              file=sys.stderr)
-    return 0
+        with out.open(args.stats) as fh:
+            json.dump(rec.stats(), fh, indent=2)
+            fh.write("\n")

@@ -14,6 +14,10 @@ from typing import Dict, Iterator, List, Optional, Tuple
 
 import numpy as np
 
+from . import finite_float, nonneg_float, nonneg_int, positive_float
+from ..canlog import LOG_EXTS, check_log_name, read_frames
+from ..errors import DeviceError, InputError, Interrupted, UsageError
+
 NAME = "replay"
 HELP = "replay a recording (CSV, BROAD HDF5) or a CAN log onto a python-can interface or into a log"
 DESCRIPTION = """\
@@ -31,21 +35,31 @@ clamped and flagged (Sat* bits).
 
 Timing: paced at recorded time (--speed scales it), or --fast (as fast as the interface takes
 it, optionally capped by --max-fps). Send failures (interface down, full queue) are counted and
-reported; the replay goes on.
+reported; the replay goes on. Ctrl-C or SIGTERM stops sending; the summary and --stats say
+how much was sent. --to-log writes the log under a temporary name and renames it when
+complete: an interrupted run leaves no log.
+
+python-can's 'virtual' interface connects only buses inside one process: frames replayed on
+it from this command reach no other program (attekf record, attekf-node). Between processes
+use socketcan (vcan0: docs/hil.md) or udp_multicast.
 
 examples:
   attekf replay rec.csv -i socketcan -c vcan0
   attekf replay trial.hdf5 -i socketcan -c can0 --start 10 --stop 40 --speed 2
   attekf replay rec.csv --to-log frames.log          (for attekf-node --replay)
-  attekf replay bus.log -i virtual -c test --fast --loop 3
+  attekf replay bus.log -i udp_multicast --fast --loop 3
 """
 
 RECORDING_EXT = (".csv", ".hdf5", ".h5")
-CANLOG_EXT = (".log", ".asc", ".blf")
+CANLOG_EXT = LOG_EXTS
 
+# A bad input file is an InputError like every reader's; ReplayError names the same class
+# for callers (the fuzz target) that catch replay's errors by that name.
+ReplayError = InputError
 
-class ReplayError(Exception):
-    """Bad options or input: one line for the user."""
+VIRTUAL_WARNING = ("warning: python-can's 'virtual' interface reaches only buses in this same "
+                   "process: no other program (attekf record, attekf-node) receives these frames; "
+                   "between processes use -i socketcan -c vcan0 or -i udp_multicast")
 
 
 @dataclass
@@ -80,16 +94,17 @@ def add_arguments(p) -> None:
                      help="write the frames to a CAN log instead (.log, .asc, .blf, ...; python-can "
                           "picks the format from the extension), time stamps = sample times")
     tm = p.add_argument_group("timing")
-    tm.add_argument("--speed", type=float, default=1.0, help="time scale: 2 = twice as fast (default 1)")
+    tm.add_argument("--speed", type=positive_float, default=1.0,
+                    help="time scale: 2 = twice as fast (default 1)")
     tm.add_argument("--fast", action="store_true", help="as fast as possible (ignore time stamps)")
-    tm.add_argument("--max-fps", type=float, default=0.0,
+    tm.add_argument("--max-fps", type=nonneg_float, default=0.0,
                     help="with --fast: at most this many frames per second (default: no cap)")
-    tm.add_argument("--loop", type=int, default=1,
+    tm.add_argument("--loop", type=nonneg_int, default=1,
                     help="play the stream this many times, continuing time and Seq (0 = forever)")
-    tm.add_argument("--start", type=float, default=0.0, help="skip the first START s of the input")
-    tm.add_argument("--stop", type=float, default=None, help="end STOP s after the input's beginning")
+    tm.add_argument("--start", type=nonneg_float, default=0.0, help="skip the first START s of the input")
+    tm.add_argument("--stop", type=finite_float, default=None, help="end STOP s after the input's beginning")
     p.add_argument("--no-mag", action="store_true", help="recordings: leave the magnetometer out")
-    p.add_argument("--send-timeout", type=float, default=0.05,
+    p.add_argument("--send-timeout", type=nonneg_float, default=0.05,
                    help="seconds to wait for room in the transmit queue before a frame counts as "
                         "failed (default 0.05)")
     p.add_argument("--stats", metavar="FILE", help="write what was sent (counts, failures) as JSON")
@@ -115,11 +130,12 @@ def frames_from_recording(path: str, start: float = 0.0, stop: Optional[float] =
     from ..io import read_recording
     rec = read_recording(path)
     if rec.t[0] < 0:
-        raise ReplayError(f"{path}: sample times must be >= 0 s (first is {rec.t[0]:g})")
+        raise InputError(f"{path}: {rec.where(0)}: sample times must be >= 0 s (first is {rec.t[0]:g})")
     keep = _window(rec.t, start, stop)
     idx = np.nonzero(keep)[0]
     if idx.size == 0:
-        raise ReplayError(f"{path}: no samples between --start {start:g} s and --stop {stop} s")
+        raise InputError(f"{path}: no samples between --start {start:g} s and --stop {stop} s "
+                         f"(the recording is {rec.t[-1] - rec.t[0]:.6g} s long)")
     lo, hi = int(idx[0]), int(idx[-1]) + 1
     mag = rec.mag[lo:hi] if (use_mag and rec.mag is not None) else None
     enc = canproto.encode_samples(rec.t[lo:hi], rec.gyr[lo:hi], rec.acc[lo:hi], mag, seq0=lo)
@@ -128,30 +144,22 @@ def frames_from_recording(path: str, start: float = 0.0, stop: Optional[float] =
 
 
 def frames_from_canlog(path: str, start: float = 0.0, stop: Optional[float] = None) -> Frames:
-    """Every data frame of a CAN log with its time stamp (error and remote frames skipped)."""
-    import can
+    """Every classic data frame of a CAN log with its time stamp (canlog.read_frames)."""
     t, ids, data, ext = [], [], [], []
-    try:
-        for m in can.LogReader(path):
-            if m.is_error_frame or m.is_remote_frame:
-                continue
-            t.append(float(m.timestamp))
-            ids.append(int(m.arbitration_id))
-            data.append(bytes(m.data))
-            ext.append(bool(m.is_extended_id))
-    except Exception as e:  # python-can's readers raise many types on corrupt logs
-        # (OSError, ValueError, struct.error, zlib.error, IndexError ...; found by fuzzing)
-        msg = " ".join(str(e).split()) or type(e).__name__
-        raise ReplayError(f"{path}: cannot read as a CAN log: {msg}") from e
-    if not t:
-        raise ReplayError(f"{path}: no CAN data frames in the log")
+    for ti, fid, d, e in read_frames(path):
+        t.append(ti)
+        ids.append(fid)
+        data.append(d)
+        ext.append(e)
     ta = np.asarray(t)
     if np.any(np.diff(ta) < 0):
         k = int(np.argmax(np.diff(ta) < 0)) + 1
-        raise ReplayError(f"{path}: frame {k + 1}: time stamp goes backwards ({ta[k]:f} after {ta[k - 1]:f})")
+        raise InputError(f"{path}: data frame {k + 1}: time stamp goes backwards ({ta[k]:f} after "
+                         f"{ta[k - 1]:f}); a log is replayed in time order")
     keep = _window(ta, start, stop)
     if not keep.any():
-        raise ReplayError(f"{path}: no frames between --start {start:g} s and --stop {stop} s")
+        raise InputError(f"{path}: no frames between --start {start:g} s and --stop {stop} s "
+                         f"(the log spans {ta[-1] - ta[0]:.6g} s)")
     sel = np.nonzero(keep)[0]
     return Frames(t=ta[sel], ids=np.asarray(ids, np.int64)[sel], data=[data[i] for i in sel],
                   extended=np.asarray(ext)[sel])
@@ -161,13 +169,13 @@ def load_frames(path: str, start: float = 0.0, stop: Optional[float] = None,
                 use_mag: bool = True) -> Frames:
     ext = os.path.splitext(path)[1].lower()
     if not os.path.exists(path):
-        raise ReplayError(f"{path}: no such file")
+        raise InputError(f"{path}: no such file")
     if ext in RECORDING_EXT:
         return frames_from_recording(path, start, stop, use_mag)
     if ext in CANLOG_EXT:
         return frames_from_canlog(path, start, stop)
-    raise ReplayError(f"{path}: unknown input format '{ext or '(none)'}' (expected "
-                      f"{', '.join(RECORDING_EXT + CANLOG_EXT)})")
+    raise InputError(f"{path}: unknown input format '{ext or '(none)'}' (expected "
+                     f"{', '.join(RECORDING_EXT + CANLOG_EXT)})")
 
 
 def loop_period(fr: Frames) -> float:
@@ -229,24 +237,31 @@ class SendStats:
                 "first_failure_s": self.first_failure_s, "last_failure_s": self.last_failure_s}
 
 
-def open_bus(interface: str, channel: Optional[str], bitrate: Optional[int] = None):
-    """A python-can bus, with a one-line error for an unknown interface or channel."""
+def check_interface(interface: str) -> None:
+    """UsageError for an interface name python-can does not know."""
     import can
+    if interface not in can.VALID_INTERFACES:
+        raise UsageError(f"-i {interface}: unknown python-can interface (known: "
+                         f"{', '.join(sorted(can.VALID_INTERFACES))})")
+
+
+def open_bus(interface: str, channel: Optional[str], bitrate: Optional[int] = None):
+    """A python-can bus; UsageError for an unknown interface, DeviceError when it cannot be
+    opened (one line each)."""
+    import can
+    check_interface(interface)
     kwargs = {"interface": interface}
     if channel is not None:
         kwargs["channel"] = channel
     if bitrate is not None:
         kwargs["bitrate"] = bitrate
-    if interface not in can.VALID_INTERFACES:
-        raise ReplayError(f"unknown python-can interface '{interface}' (known: "
-                          f"{', '.join(sorted(can.VALID_INTERFACES))})")
     try:
         return can.Bus(**kwargs)
-    except (can.CanError, OSError, ValueError, ImportError, NotImplementedError) as e:
+    except Exception as e:  # interfaces raise CanError, OSError, ValueError, ImportError, ...
         hint = ""
         if getattr(e, "errno", None) == errno.EAFNOSUPPORT:
             hint = " (this kernel has no CAN support: run under user-mode Linux, docs/hil.md)"
-        raise ReplayError(f"cannot open {interface} channel {channel}: {e}{hint}") from e
+        raise DeviceError(f"cannot open {interface} channel {channel}: {e or type(e).__name__}{hint}") from None
 
 
 def _raw_socket(bus):
@@ -360,15 +375,14 @@ def write_log(path: str, frames: Iterator[Tuple[float, int, bytes, bool]], total
               quiet: bool = False) -> SendStats:
     """Writes frames to a CAN log (format from the extension), time stamps = frame times."""
     import can
+    from ..errors import OutputError
     from ..progress import bar
     st = SendStats()
     t0 = time.perf_counter()
-    d = os.path.dirname(os.path.abspath(path))
-    os.makedirs(d, exist_ok=True)
     try:
         logger = can.Logger(path)
     except (ValueError, OSError) as e:
-        raise ReplayError(f"{path}: cannot write a CAN log: {e}") from e
+        raise OutputError(f"{path}: cannot write a CAN log: {e}") from None
     pb = bar(total, "write", quiet=quiet, unit="frame")
     try:
         for t, fid, data, ext in frames:
@@ -384,65 +398,81 @@ def write_log(path: str, frames: Iterator[Tuple[float, int, bytes, bool]], total
 
 
 def run(args) -> int:
+    from ..outputs import Outputs, check_file
+
     if (args.to_log is None) == (args.interface is None):
-        print("attekf replay: give either -i/--interface (with -c/--channel) or --to-log", file=sys.stderr)
-        return 2
-    if args.speed <= 0 or not np.isfinite(args.speed):
-        print("attekf replay: --speed must be > 0", file=sys.stderr)
-        return 2
-    if args.loop < 0 or args.start < 0 or (args.stop is not None and args.stop <= args.start):
-        print("attekf replay: need --loop >= 0, --start >= 0 and --stop > --start", file=sys.stderr)
-        return 2
+        raise UsageError("give either -i/--interface (with -c/--channel) or --to-log")
+    if args.stop is not None and args.stop <= args.start:
+        raise UsageError(f"--stop {args.stop:g} must be after --start {args.start:g}")
     if args.to_log is not None and args.loop == 0:
-        print("attekf replay: --loop 0 (forever) cannot go to a file", file=sys.stderr)
-        return 2
-    from ..io import InputError
-    from ..canproto import ProtocolError
-    try:
+        raise UsageError("--loop 0 (forever) cannot go to a file")
+    if args.interface is not None:
+        check_interface(args.interface)
+    with Outputs() as out:
+        out.inputs([args.input])
+        if args.to_log is not None:
+            check_log_name(args.to_log, "--to-log", output=True)
+            out.file(args.to_log, "--to-log")
+        out.file(args.stats, "--stats")
+        if args.started_file:
+            check_file(args.started_file, "--started-file")
         fr = load_frames(args.input, args.start, args.stop, use_mag=not args.no_mag)
-    except (ReplayError, InputError, ProtocolError) as e:
-        print(f"attekf replay: {e}", file=sys.stderr)
-        return 1
-    is_rec = os.path.splitext(args.input)[1].lower() in RECORDING_EXT
-    total = len(fr) * args.loop if args.loop else None
-    stream = iterate_loops(fr, args.loop, is_rec)
+        is_rec = os.path.splitext(args.input)[1].lower() in RECORDING_EXT
+        total = len(fr) * args.loop if args.loop else None
+        stream = iterate_loops(fr, args.loop, is_rec)
+        if args.to_log:
+            try:
+                st = write_log(out.temp(args.to_log), stream, total, quiet=args.quiet)
+            except KeyboardInterrupt:
+                raise Interrupted(f"{args.to_log} not written (the log is only put in place when "
+                                  "complete)") from None
+            interrupted = False
+        else:
+            st, interrupted = _send(args, stream, total)
+        info = {"input": args.input, "samples": fr.samples * (args.loop or 1) if is_rec else None,
+                "saturated": fr.saturated, "interrupted": interrupted, **st.as_dict()}
+        if args.stats:
+            with out.open(args.stats) as fh:
+                json.dump(info, fh, indent=2)
+                fh.write("\n")
+        out.commit()
+    if not args.quiet or interrupted:
+        dest = args.to_log or f"{args.interface}:{args.channel}"
+        sent = f"stopped after {st.frames}" + (f" of {total}" if total else "") if interrupted \
+            else f"{st.frames}"
+        print(f"attekf replay: {sent} frames to {dest} in {st.seconds:.2f} s"
+              + (f", {st.failed} failed ({', '.join(f'{k} x{v}' for k, v in st.errors.items())})"
+                 if st.failed else ""), file=sys.stderr)
+        if any(fr.saturated.values()) and not args.quiet:
+            print(f"attekf replay: samples with values clamped to the wire range: {fr.saturated}",
+                  file=sys.stderr)
+    if args.interface == "virtual":
+        print(f"attekf replay: {VIRTUAL_WARNING}", file=sys.stderr)
+    # a finite stream cut short ends like any interrupted command; --loop 0 only ends so
+    return 130 if interrupted and args.loop else 0
+
+
+def _send(args, stream, total) -> Tuple[SendStats, bool]:
+    """Sends the stream on the bus until done or SIGINT/SIGTERM; (stats, interrupted)."""
     stop_flag = [False]
 
     def on_signal(_sig, _frm):
         stop_flag[0] = True
-    old = _set_signal(signal.SIGTERM, on_signal)
+    bus = open_bus(args.interface, args.channel, args.bitrate)
+    if args.interface == "virtual":
+        print(f"attekf replay: {VIRTUAL_WARNING}", file=sys.stderr)
+    old_int = _set_signal(signal.SIGINT, on_signal)
+    old_term = _set_signal(signal.SIGTERM, on_signal)
     try:
-        if args.to_log:
-            st = write_log(args.to_log, stream, total, quiet=args.quiet)
-        else:
-            bus = open_bus(args.interface, args.channel, args.bitrate)
-            try:
-                st = send_stream(bus, stream, total, speed=args.speed, fast=args.fast,
-                                 max_fps=args.max_fps, send_timeout=args.send_timeout,
-                                 quiet=args.quiet, stop_flag=stop_flag,
-                                 started_file=args.started_file)
-            finally:
-                bus.shutdown()
-    except ReplayError as e:
-        print(f"attekf replay: {e}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        print("attekf replay: interrupted", file=sys.stderr)
-        return 130
+        st = send_stream(bus, stream, total, speed=args.speed, fast=args.fast,
+                         max_fps=args.max_fps, send_timeout=args.send_timeout,
+                         quiet=args.quiet, stop_flag=stop_flag, started_file=args.started_file)
     finally:
-        if old is not None:
-            _set_signal(signal.SIGTERM, old)
-    info = {"input": args.input, "samples": fr.samples * (args.loop or 1) if is_rec else None,
-            "saturated": fr.saturated, **st.as_dict()}
-    if args.stats:
-        with open(args.stats, "w", encoding="utf-8") as fh:
-            json.dump(info, fh, indent=2)
-    if not args.quiet:
-        dest = args.to_log or f"{args.interface}:{args.channel}"
-        print(f"attekf replay: {st.frames} frames to {dest} in {st.seconds:.2f} s"
-              + (f", {st.failed} failed ({', '.join(f'{k} x{v}' for k, v in st.errors.items())})"
-                 if st.failed else ""), file=sys.stderr)
-        if any(fr.saturated.values()):
-            print(f"attekf replay: samples with values clamped to the wire range: {fr.saturated}",
-                  file=sys.stderr)
-    return 0
+        for sig, old in ((signal.SIGINT, old_int), (signal.SIGTERM, old_term)):
+            if old is not None:
+                _set_signal(sig, old)
+        try:
+            bus.shutdown()
+        except Exception:  # noqa: BLE001 - a failing shutdown must not hide the result
+            pass
+    return st, stop_flag[0]
