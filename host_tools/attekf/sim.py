@@ -213,6 +213,8 @@ def simulate(cfg: SimConfig) -> Recording:
         "generator": "attekf sim",
         "sim_config": json.dumps(asdict(cfg)),
         "gyro_bias_rad_s": json.dumps(bias.tolist()),
+        # [kind, start_s, stop_s] per disturbance episode (eval's plots shade them)
+        "episodes": json.dumps([[k, round(a, 6), round(b, 6)] for k, a, b in cfg.episodes]),
         "info": "synthetic recording: imu_gyr rad/s, imu_acc m/s^2, imu_mag uT, opt_quat [w x y z] "
                 "body->ENU truth, movement = scored samples",
     }

@@ -11,15 +11,17 @@ import sys
 from typing import Dict
 
 from .. import __version__
-from . import run_guarded
-from ..io import InputError, read_settings_json
+from . import check_settings, parse_pair, positive_int
+from ..errors import InputError, Interrupted, UsageError
+from ..io import read_settings_json
 
 NAME = "bench"
 HELP = "benchmark the estimator against VQF, Fusion, Madgwick, Mahony on BROAD (table, JSON, plot)"
 DESCRIPTION = """\
 Runs, on the same BROAD trials in one run: this estimator through the C binding (9D with the
-magnetometer, 6D without), VQF (offline), Fusion (imufusion), Madgwick (ahrs, beta 0.12) and
-Mahony (ahrs, Kp 0.74, Ki 0.0012) - the BROAD paper's best common parameters. Every output is
+magnetometer, 6D without), VQF (offline), Fusion (imufusion, with its gyroscope bias
+correction in front as its authors run it; fusion-bare-* without), Madgwick (ahrs, beta
+0.12) and Mahony (ahrs, Kp 0.74, Ki 0.0012) - the BROAD paper's best common parameters. Every output is
 brought to body->ENU and scored like BROAD: e = q_est * inv(q_ref) in the earth frame; total,
 heading and inclination angle; RMSE over the 'movement' samples; mean over trials, overall
 and per group of trials.json. 6D methods: the mean heading offset is removed before scoring.
@@ -27,12 +29,13 @@ Per-sample cost: microseconds per sample on this machine (what is timed: see the
 
 Outputs: tables on stdout; --json FILE; with --out DIR: DIR/table.txt (all tables, per
 trial too), DIR/results.json and DIR/bench_groups.png (bar plot per group); --markdown FILE
-writes the tables for docs/accuracy.md.
+writes the tables for docs/accuracy.md. Output paths are checked before the run; files are
+written under temporary names and renamed at the end (Ctrl-C leaves none).
 Details and the latest numbers: docs/accuracy.md.
 
 methods (--methods, comma list of keys or families; default: the ones marked *):
   ours-9d* ours-6d* vqf-9d* vqf-6d* fusion-9d* fusion-6d* madgwick-9d* mahony-9d*
-  vqf-online-9d vqf-online-6d madgwick-6d mahony-6d
+  vqf-online-9d vqf-online-6d fusion-bare-9d fusion-bare-6d madgwick-6d mahony-6d
   --ablation adds our filter with robustness features switched off (ours-9d:no-mag-gate ...)
   --oracle-bias adds our filter with the gyro bias taken from the truth (ANALYSIS ONLY)
   --variant NAME:SET=V,SET=V adds our filter with other settings (9D and 6D)
@@ -46,19 +49,18 @@ examples:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from ..bench import DEFAULT_DATA
+    from ..bench import DEFAULT_DATA, DEFAULT_DATA_TEXT
     from ..native import SCALARS
     p.add_argument("--data", default=DEFAULT_DATA, metavar="DIR",
-                   help=f"directory of BROAD .hdf5 trials with trials.json (default {DEFAULT_DATA}, "
-                        "or $ATTEKF_BROAD_DIR)")
+                   help=f"directory of BROAD .hdf5 trials with trials.json (default: {DEFAULT_DATA_TEXT})")
     p.add_argument("--trials", metavar="LIST",
                    help="comma list of trial names, name prefixes (e.g. 02,15) or glob patterns")
-    p.add_argument("--limit", type=int, metavar="N", help="only the first N trials (after --trials)")
+    p.add_argument("--limit", type=positive_int, metavar="N", help="only the first N trials (after --trials)")
     p.add_argument("--methods", metavar="LIST", default="default",
                    help="comma list of method keys or families (ours, vqf, fusion, madgwick, mahony), "
                         "9d, 6d, default, all (default: default)")
     p.add_argument("--list-methods", action="store_true", help="print the methods and exit")
-    p.add_argument("--jobs", "-j", type=int, default=os.cpu_count() or 1, metavar="N",
+    p.add_argument("--jobs", "-j", type=positive_int, default=os.cpu_count() or 1, metavar="N",
                    help="worker processes over (trial, method) pairs (default: CPU count, %(default)s)")
     p.add_argument("--scalar", choices=sorted(SCALARS), default="float",
                    help="which C build of our filter runs (default float, what ships)")
@@ -75,8 +77,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="also run our filter (9D and 6D) with these settings changed; repeatable")
     p.add_argument("--fusion-set", action="append", default=[], metavar="NAME=VALUE",
                    help="change a Fusion setting (gain, gyroscope_range, acceleration_rejection, "
-                        "magnetic_rejection, rejection_timeout [s]); default: x-io's example values")
-    p.add_argument("--init-samples", type=int, default=10, metavar="N",
+                        "magnetic_rejection, rejection_timeout [s], bias_stationary_threshold "
+                        "[deg/s], bias_stationary_period [s]); default: x-io's example values")
+    p.add_argument("--init-samples", type=positive_int, default=10, metavar="N",
                    help="samples averaged for the common initial attitude of Madgwick, Mahony and "
                         "Fusion (default 10, our filter's align_samples)")
     p.add_argument("--out", metavar="DIR", help="write table.txt, results.json, bench_groups.png")
@@ -86,31 +89,20 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--per-trial", action="store_true", help="also print the per-trial total RMSE table")
 
 
-def _fail(msg: str, code: int = 1) -> int:
-    print(f"attekf bench: error: {msg}", file=sys.stderr)
-    return code
-
-
-def _parse_pair(item: str, what: str):
-    name, sep, value = item.partition("=")
-    if not sep or not name.strip():
-        raise InputError(f"{what} {item!r}: expected NAME=VALUE")
-    try:
-        return name.strip(), float(value)
-    except ValueError:
-        raise InputError(f"{what} {item!r}: '{value}' is not a number") from None
-
-
 def _parse_settings(args) -> Dict[str, float]:
+    """--settings (NAME=VALUE pairs and JSON files) then --set; each origin checked by the C
+    library now, before the pool starts (a refused setting: exit 2, naming its origin)."""
     out: Dict[str, float] = {}
     for item in args.settings:
         if "=" not in item and item.endswith(".json"):
-            out.update({str(k): float(v) for k, v in read_settings_json(item).items()})
+            from_file = read_settings_json(item)
+            check_settings(args.scalar, from_file, item)
+            out.update(from_file)
         else:
-            k, v = _parse_pair(item, "--settings")
+            k, v = parse_pair(item, "--settings")
             out[k] = v
     for item in args.set:
-        k, v = _parse_pair(item, "--set")
+        k, v = parse_pair(item, "--set")
         out[k] = v
     return out
 
@@ -120,8 +112,8 @@ def _parse_variants(items) -> Dict[str, Dict[str, object]]:
     for item in items:
         name, sep, rest = item.partition(":")
         if not sep or not name.strip() or not rest.strip():
-            raise InputError(f"--variant {item!r}: expected NAME:SETTING=VALUE[,SETTING=VALUE]")
-        changes = dict(_parse_pair(p, "--variant") for p in rest.split(",") if p.strip())
+            raise UsageError(f"--variant {item!r}: expected NAME:SETTING=VALUE[,SETTING=VALUE]")
+        changes = dict(parse_pair(p, "--variant") for p in rest.split(",") if p.strip())
         for six, d in ((False, "9d"), (True, "6d")):
             out[f"ours-{d}:{name.strip()}"] = {"name": name.strip(), "settings": changes, "six_d": six}
     return out
@@ -171,61 +163,70 @@ def _check_ours_settings(methods, cfg) -> list:
 
 
 def run(args: argparse.Namespace) -> int:
-    return run_guarded(_fail, lambda: _run(args))
-
-
-def _run(args: argparse.Namespace) -> int:
     from .. import bench
 
     cfg = bench.RunConfig(scalar=args.scalar, settings=_parse_settings(args),
                           init_samples=args.init_samples, variants=_parse_variants(args.variant))
     for item in args.fusion_set:
-        k, v = _parse_pair(item, "--fusion-set")
+        k, v = parse_pair(item, "--fusion-set")
         if k not in bench.FUSION_SETTINGS:
-            return _fail(f"--fusion-set {item!r}: unknown Fusion setting (known: "
-                         f"{', '.join(bench.FUSION_SETTINGS)})", 2)
+            raise UsageError(f"--fusion-set {item!r}: unknown Fusion setting (known: "
+                             f"{', '.join(bench.FUSION_SETTINGS)})")
         cfg.fusion[k] = v
     if args.list_methods:
         for m in bench.all_methods(cfg).values():
             print(f"  {m.key:32s} {m.dim}  {'default ' if m.default else '        '}{m.label}")
         return 0
-    if args.jobs < 1:
-        return _fail("--jobs must be >= 1", 2)
-    if args.init_samples < 1:
-        return _fail("--init-samples must be >= 1", 2)
     try:
         methods = bench.select_methods(args.methods, args.ablation, args.oracle_bias, cfg)
     except ValueError as exc:
-        return _fail(str(exc), 2)
-    try:
-        paths = bench.find_trials(args.data, args.trials, args.limit)
-    except FileNotFoundError as exc:
-        return _fail(str(exc))
-    if not paths:
-        return _fail("no trial selected", 2)
-    missing = bench.missing_packages(methods)
-    if missing:
-        return _fail("; ".join(f"{k} needs the Python package '{p}'" for k, p in missing.items())
-                     + " (install host_tools/requirements.lock: scripts/setup.sh, or pip install "
-                     "'attekf[bench]'; or leave these out with --methods)")
-    methods = _check_ours_settings(methods, cfg)
-    for p in paths:   # fail early, with the file named, before the pool starts
-        rec = bench.read_recording(p)
-        if not rec.has_truth:
-            return _fail(f"{p}: no ground truth (opt_quat): nothing to score")
-        if rec.mag is None and any(not m.six_d for m in methods):
-            return _fail(f"{p}: no magnetometer: run 6D methods only (--methods 6d)")
-    return _bench(args, paths, methods, cfg)
+        raise UsageError(str(exc)) from None
+    if cfg.settings and any(m.family == "ours" for m in methods):
+        check_settings(cfg.scalar, cfg.settings)
+    from ..outputs import Outputs
+    with Outputs() as out:
+        plan = {"json": args.json or (os.path.join(args.out, "results.json") if args.out else None)}
+        if args.out:
+            out.directory(args.out, "--out")
+            plan["table"] = out.file(os.path.join(args.out, "table.txt"), "--out")
+            if not args.no_plot:
+                plan["plot"] = out.file(os.path.join(args.out, "bench_groups.png"), "--out")
+        out.file(plan["json"], "--json" if args.json else "--out")
+        plan["markdown"] = out.file(args.markdown, "--markdown")
+        try:
+            paths = bench.find_trials(args.data, args.trials, args.limit)
+        except FileNotFoundError as exc:
+            raise InputError(str(exc)) from None
+        if not paths:
+            raise UsageError("no trial selected")
+        out.inputs(paths)
+        missing = bench.missing_packages(methods)
+        if missing:
+            raise InputError("; ".join(f"{k} needs the Python package '{p}'" for k, p in missing.items())
+                             + " (install host_tools/requirements.lock: scripts/setup.sh, or pip install "
+                             "'attekf[bench]'; or leave these out with --methods)")
+        methods = _check_ours_settings(methods, cfg)
+        for p in paths:   # fail early, with the file named, before the pool starts
+            rec = bench.read_recording(p)
+            if not rec.has_truth:
+                raise InputError(f"{p}: no ground truth (opt_quat): nothing to score")
+            if rec.mag is None and any(not m.six_d for m in methods):
+                raise InputError(f"{p}: no magnetometer: run 6D methods only (--methods 6d)")
+        return _bench(args, paths, methods, cfg, out, plan)
 
 
-def _bench(args, paths, methods, cfg) -> int:
+def _bench(args, paths, methods, cfg, out, plan) -> int:
     from .. import bench
     from ..progress import bar
 
     n_tasks = len(paths) * len(methods)
-    with bar(n_tasks, f"bench {len(paths)} trials x {len(methods)} methods", args.quiet, unit="run") as pb:
-        result = bench.run_benchmark(paths, methods, cfg, jobs=args.jobs, progress=pb.update,
-                                     data_dir=args.data)
+    try:
+        with bar(n_tasks, f"bench {len(paths)} trials x {len(methods)} methods", args.quiet, unit="run") as pb:
+            result = bench.run_benchmark(paths, methods, cfg, jobs=args.jobs, progress=pb.update,
+                                         data_dir=args.data)
+    except KeyboardInterrupt:
+        raise Interrupted(f"{len(paths)} trials x {len(methods)} methods not finished: nothing written "
+                          "(outputs are only put in place when complete)") from None
     result["tool"] = f"attekf bench {__version__}"
     result["command"] = "attekf bench " + " ".join(_argv_tail())
     summary = bench.format_summary(result)
@@ -242,30 +243,25 @@ def _bench(args, paths, methods, cfg) -> int:
     if any(m.analysis_only for m in methods):
         print("ANALYSIS ONLY rows use ground-truth knowledge (the movement mask): not results.")
     clean = bench.clean_json(result)
-    json_path = args.json or (os.path.join(args.out, "results.json") if args.out else None)
-    if args.out:
-        os.makedirs(args.out, exist_ok=True)
-        with open(os.path.join(args.out, "table.txt"), "w", encoding="utf-8") as fh:
+    if plan.get("table"):
+        with out.open(plan["table"]) as fh:
             fh.write(summary + "\n\n" + bench.format_trials(result) + "\n\n"
                      + bench.format_trials(result, "heading") + "\n\n"
                      + bench.format_trials(result, "inclination") + "\n\n" + costs + "\n"
                      + f"\ncommand: {result['command']}\ncommit: {git.get('commit')}"
                      + (" + uncommitted changes" if git.get("uncommitted_changes") else "") + "\n")
-        if not args.no_plot:
-            bench.plot_groups(result, os.path.join(args.out, "bench_groups.png"))
-    if args.markdown:
-        os.makedirs(os.path.dirname(os.path.abspath(args.markdown)), exist_ok=True)
-        with open(args.markdown, "w", encoding="utf-8") as fh:
+    if plan.get("plot"):
+        bench.plot_groups(result, out.temp(plan["plot"]))
+    if plan.get("markdown"):
+        with out.open(plan["markdown"]) as fh:
             fh.write(bench.format_markdown(result))
-    if json_path:
-        os.makedirs(os.path.dirname(os.path.abspath(json_path)), exist_ok=True)
-        with open(json_path, "w", encoding="utf-8") as fh:
+    if plan.get("json"):
+        with out.open(plan["json"]) as fh:
             json.dump(clean, fh, indent=1, allow_nan=False)
             fh.write("\n")
-    if (args.out or json_path) and not args.quiet:
-        print("wrote " + ", ".join(x for x in (args.out and f"{args.out}/table.txt", json_path,
-                                                args.out and not args.no_plot and f"{args.out}/bench_groups.png")
-                                   if x), file=sys.stderr)
+    written = out.commit()
+    if written and not args.quiet:
+        print("wrote " + ", ".join(written), file=sys.stderr)
     return 0
 
 

@@ -11,8 +11,9 @@ import sys
 from typing import Dict, List
 
 from .. import __version__
-from . import run_guarded
-from ..io import InputError, read_output_csv, read_recording, read_settings_json, write_output_csv
+from . import check_settings, finite_float, parse_pair
+from ..errors import InputError, Interrupted, UsageError
+from ..io import read_output_csv, read_recording, read_settings_json, write_output_csv
 
 NAME = "eval"
 HELP = "evaluate the estimator against ground truth (table, JSON, plots)"
@@ -26,11 +27,13 @@ evaluates every .csv/.hdf5/.h5 recording in it, with a per-trial and a mean tabl
 Outputs: the table on stdout; with --out DIR also DIR/table.txt, DIR/results.json and one
 plot per trial DIR/<trial>.png (Euler angles vs truth; errors with the filter's 3-sigma
 bounds). Without magnetometer (--no-mag, or none in the file) the scoring is 6D: the mean
-heading offset is removed first (docs/host_tools.md).
+heading offset is removed first (docs/host_tools.md). Output paths are checked before the
+work starts; the files are written under temporary names and renamed together at the end,
+so an error or Ctrl-C leaves none of them (and earlier files of the same names unchanged).
 
 examples:
-  attekf eval out/demo/undisturbed.csv --out out/eval
-  attekf eval /work/shared/data/broad --out out/broad --no-plot
+  attekf eval out/demo/recordings/undisturbed.csv --out out/eval
+  attekf eval ../shared/data/broad --out out/broad --no-plot
   attekf eval trial.csv --output-csv recorded.csv
   attekf eval trial.csv --set accel_noise=0.3 --set mag_gate=0
   attekf eval --list-settings
@@ -45,7 +48,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--output-csv", metavar="FILE",
                    help="score this recorded estimator output instead of running the estimator "
                         "(one recording only; format in docs/host_tools.md)")
-    p.add_argument("--time-offset", type=float, default=0.0, metavar="S",
+    p.add_argument("--time-offset", type=finite_float, default=0.0, metavar="S",
                    help="added to the output file's t_s before matching it to samples (default 0)")
     p.add_argument("--scalar", choices=("float", "double", "fixed"), default="float",
                    help="which C build runs: float (what ships, default), double, or fixed "
@@ -65,18 +68,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="accept data whose magnitudes look like other units (deg/s, g, gauss)")
 
 
-def _fail(msg: str, code: int = 1) -> int:
-    print(f"attekf eval: error: {msg}", file=sys.stderr)
-    return code
-
-
 def _collect(inputs: List[str]) -> List[str]:
     files: List[str] = []
     for path in inputs:
         if os.path.isdir(path):
-            found = sorted(os.path.join(path, f) for f in os.listdir(path)
+            try:
+                names = os.listdir(path)
+            except OSError as exc:
+                raise InputError(f"{path}: cannot read the directory: {exc.strerror or exc}") from None
+            found = sorted(os.path.join(path, f) for f in names
                            if f.lower().endswith(RECORDING_EXTS) and not f.endswith("_output.csv")
-                           and os.path.isfile(os.path.join(path, f)))
+                           and not f.startswith(".") and os.path.isfile(os.path.join(path, f)))
             if not found:
                 raise InputError(f"{path}: no recordings (.csv, .hdf5, .h5) in this directory")
             files += found
@@ -86,17 +88,19 @@ def _collect(inputs: List[str]) -> List[str]:
 
 
 def _parse_settings(args) -> Dict[str, float]:
+    """--settings FILE then --set NAME=VALUE (later wins); each checked by the C library now,
+    so a refused setting fails before any work (exit 2, naming its origin)."""
     settings: Dict[str, float] = {}
     if args.settings:
-        settings.update(read_settings_json(args.settings))
+        from_file = read_settings_json(args.settings)
+        if not args.list_settings:
+            check_settings(args.scalar, from_file, args.settings)
+        settings.update(from_file)
     for item in args.set:
-        name, sep, value = item.partition("=")
-        if not sep or not name.strip():
-            raise InputError(f"--set {item!r}: expected NAME=VALUE")
-        try:
-            settings[name.strip()] = float(value)
-        except ValueError:
-            raise InputError(f"--set {item!r}: '{value}' is not a number") from None
+        name, value = parse_pair(item, "--set")
+        settings[name] = value
+    if settings and not args.list_settings:
+        check_settings(args.scalar, settings)
     return settings
 
 
@@ -111,52 +115,88 @@ def _list_settings(scalar: str) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    return run_guarded(_fail, lambda: _run(args))
-
-
-def _run(args: argparse.Namespace) -> int:
     if args.list_settings:
         return _list_settings(args.scalar)
     if not args.inputs:
-        return _fail("no recording given (see --help)", 2)
+        raise UsageError("no recording given (see --help)")
+    if args.save_output and not args.out:
+        raise UsageError("--save-output needs --out DIR")
     settings = _parse_settings(args)
     files = _collect(args.inputs)
     if args.output_csv and len(files) != 1:
-        return _fail(f"--output-csv scores one recording, {len(files)} given", 2)
-    if args.save_output and not args.out:
-        return _fail("--save-output needs --out DIR", 2)
-    return _evaluate(args, files, settings)
+        raise UsageError(f"--output-csv scores one recording, {len(files)} given")
+    from ..outputs import Outputs
+    with Outputs() as out:
+        out.inputs(files + [args.output_csv, args.settings])
+        plan = _plan_outputs(args, files, out)
+        _evaluate(args, files, settings, out, plan)
+    return 0
 
 
-def _evaluate(args, files: List[str], settings: Dict[str, float]) -> int:
+def _trial_names(files: List[str]) -> List[str]:
+    """A table name per file: the file name without extension, made unique by its directory
+    (same stem in two directories) and, failing that, by the extension."""
+    stems = [os.path.splitext(os.path.basename(p))[0] for p in files]
+    names = []
+    for p, stem in zip(files, stems):
+        name = stem
+        if stems.count(stem) > 1:
+            name = f"{stem}@{os.path.basename(os.path.dirname(os.path.abspath(p)))}"
+        if name in names:
+            name = f"{name}.{os.path.splitext(p)[1].lstrip('.').lower()}"
+        k = 2
+        base = name
+        while name in names:
+            name = f"{base}#{k}"
+            k += 1
+        names.append(name)
+    return names
+
+
+def _plan_outputs(args, files: List[str], out) -> Dict[str, object]:
+    """Declares (and so checks, before any work) every file this run will write."""
+    names = _trial_names(files)
+    plan: Dict[str, object] = {"names": names, "plots": {}, "saved": {}}
+    if args.out:
+        out.directory(args.out, "--out")
+        plan["table"] = out.file(os.path.join(args.out, "table.txt"), "--out")
+        if not args.no_plot:
+            plan["plots"] = {n: out.file(os.path.join(args.out, f"{n}.png"), "--out") for n in names}
+        if args.save_output:
+            plan["saved"] = {n: out.file(os.path.join(args.out, f"{n}_output.csv"), "--save-output")
+                             for n in names}
+    json_path = args.json or (os.path.join(args.out, "results.json") if args.out else None)
+    plan["json"] = out.file(json_path, "--json" if args.json else "--out")
+    return plan
+
+
+def _evaluate(args, files: List[str], settings: Dict[str, float], out, plan) -> None:
     from ..evaluate import evaluate_output, evaluate_run, format_table, mean_row
     from ..progress import bar
 
     trials = []
-    names = set()
-    for path in files:
-        with bar(None, f"reading {os.path.basename(path)}", args.quiet, unit="row") as pb:
-            rec = read_recording(path, check_units=not args.no_unit_check, progress=pb.update)
-        name = rec.name
-        if name in names:  # same stem from two directories: keep both, distinguishable
-            name = f"{name}@{os.path.basename(os.path.dirname(os.path.abspath(path)))}"
-        names.add(name)
-        if args.output_csv:
-            out = read_output_csv(args.output_csv)
-            tr = evaluate_output(rec, out, six_d=args.no_mag or rec.mag is None,
-                                 time_offset_s=args.time_offset)
-        else:
-            with bar(len(rec), f"{name}", args.quiet, unit="sample") as pb:
-                tr, res = evaluate_run(rec, settings, scalar=args.scalar, use_mag=not args.no_mag,
-                                       progress=pb.update)
-            if args.save_output:
-                write_output_csv(os.path.join(args.out, f"{name}_output.csv"), rec.t, tr.euler_est,
-                                 tr.var_euler, res.flags, res.status[:, 0])
-        tr.name = name
-        trials.append(tr)
-        if not args.no_plot and args.out:
-            from ..plots import plot_trial
-            plot_trial(tr, os.path.join(args.out, f"{name}.png"))
+    try:
+        for path, name in zip(files, plan["names"]):
+            with bar(None, f"reading {os.path.basename(path)}", args.quiet, unit="row") as pb:
+                rec = read_recording(path, check_units=not args.no_unit_check, progress=pb.update)
+            if args.output_csv:
+                tr = evaluate_output(rec, read_output_csv(args.output_csv), six_d=args.no_mag or rec.mag is None,
+                                     time_offset_s=args.time_offset)
+            else:
+                with bar(len(rec), f"{name}", args.quiet, unit="sample") as pb:
+                    tr, res = evaluate_run(rec, settings, scalar=args.scalar, use_mag=not args.no_mag,
+                                           progress=pb.update)
+                if args.save_output:
+                    write_output_csv(out.temp(plan["saved"][name]), rec.t, tr.euler_est,
+                                     tr.var_euler, res.flags, res.status[:, 0])
+            tr.name = name
+            trials.append(tr)
+            if name in plan["plots"]:
+                from ..plots import plot_trial
+                plot_trial(tr, out.temp(plan["plots"][name]))
+    except KeyboardInterrupt:
+        raise Interrupted(f"after {len(trials)} of {len(files)} recording(s): nothing written "
+                          "(outputs are only put in place when complete)") from None
 
     table = format_table(trials)
     print(table)
@@ -176,20 +216,20 @@ def _evaluate(args, files: List[str], settings: Dict[str, float]) -> int:
         used = default_settings(args.scalar)
         used.update(settings)
         result["settings"] = used
-    json_path = args.json or (os.path.join(args.out, "results.json") if args.out else None)
-    if args.out:
-        os.makedirs(args.out, exist_ok=True)
-        with open(os.path.join(args.out, "table.txt"), "w", encoding="utf-8") as fh:
+    if plan.get("table"):
+        with out.open(plan["table"]) as fh:
             fh.write(table + "\n" + "".join(n + "\n" for n in notes))
-    if json_path:
-        os.makedirs(os.path.dirname(os.path.abspath(json_path)), exist_ok=True)
-        with open(json_path, "w", encoding="utf-8") as fh:
+    if plan["json"]:
+        with out.open(plan["json"]) as fh:
             json.dump(result, fh, indent=2)
             fh.write("\n")
-    if args.out and not args.quiet:
-        print(f"wrote {args.out}/table.txt, {json_path}" + ("" if args.no_plot else f", {len(trials)} plot(s)"),
-              file=sys.stderr)
-    return 0
+    written = out.commit()
+    if written and not args.quiet:
+        plots = len(plan["plots"])
+        print("wrote " + ", ".join(p for p in written if not p.endswith((".png", "_output.csv")))
+              + (f", {plots} plot(s)" if plots else "")
+              + (f", {len(plan['saved'])} output CSV(s)" if plan["saved"] else "")
+              + (f" in {args.out}" if args.out else ""), file=sys.stderr)
 
 
 def _notes(trials) -> List[str]:
