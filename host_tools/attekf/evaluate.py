@@ -13,9 +13,10 @@ and what the estimator refused (status counts).
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import dataclass, field
-from typing import Dict, List, Optional
+from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
@@ -49,6 +50,8 @@ class TrialEval:
     within_3sigma_pct: Dict[str, float]
     counts: Dict[str, int]
     estimator_summary: Dict[str, object] = field(default_factory=dict)
+    episodes: List[Tuple[str, float, float]] = field(default_factory=list)  # (kind, start s, stop s)
+    flags: Optional[np.ndarray] = None  # (N,) ATT_FLAG_* per sample (0 where no output row), or None
 
     @property
     def has_truth(self) -> bool:
@@ -70,6 +73,20 @@ class TrialEval:
         }
 
 
+def recording_episodes(rec: Recording) -> List[Tuple[str, float, float]]:
+    """Disturbance episodes the recording declares (attekf sim's 'episodes' metadata: a JSON
+    list of [kind, start_s, stop_s]); [] when absent or not in that form."""
+    raw = rec.meta.get("episodes")
+    if raw is None:
+        return []
+    try:
+        items = json.loads(raw) if isinstance(raw, (str, bytes)) else raw
+        return [(str(k), float(a), float(b)) for k, a, b in items
+                if math.isfinite(float(a)) and math.isfinite(float(b)) and float(b) > float(a)]
+    except (TypeError, ValueError):
+        return []
+
+
 def _score(rec: Recording, name: str, estimator: str, euler_est: np.ndarray,
            var_euler: Optional[np.ndarray], six_d: bool, counts: Dict[str, int],
            summary: Dict[str, object]) -> TrialEval:
@@ -87,7 +104,7 @@ def _score(rec: Recording, name: str, estimator: str, euler_est: np.ndarray,
                          err_inclination=None, err_euler=None, scored=np.zeros(n, bool), movement=movement,
                          six_d=six_d, heading_offset_deg=0.0, rmse_deg=nan3,
                          within_3sigma_pct={k: float("nan") for k in ANGLES}, counts=counts,
-                         estimator_summary=summary)
+                         estimator_summary=summary, episodes=recording_episodes(rec))
     have_ref = np.all(np.isfinite(rec.quat_ref), axis=1)
     counts["movement_without_truth"] = int((movement & ~have_ref).sum())
     q_est = euler_to_quat(euler_est)
@@ -118,7 +135,7 @@ def _score(rec: Recording, name: str, estimator: str, euler_est: np.ndarray,
                      scored=errs.scored, movement=movement, six_d=six_d,
                      heading_offset_deg=float(np.degrees(errs.heading_offset_rad)),
                      rmse_deg=errs.rmse_deg(), within_3sigma_pct=within, counts=counts,
-                     estimator_summary=summary)
+                     estimator_summary=summary, episodes=recording_episodes(rec))
 
 
 def evaluate_run(rec: Recording, settings: Optional[Dict[str, float]] = None, scalar: str = "float",
@@ -139,13 +156,21 @@ def evaluate_run(rec: Recording, settings: Optional[Dict[str, float]] = None, sc
     summary = res.summary()
     counts = {"not_aligned": int(not_aligned.sum()), "refused": int(summary["samples_refused"])}
     estimator = f"C estimator ({scalar}, binding){'' if mag_used else ', no magnetometer'}"
-    return _score(rec, rec.name, estimator, euler, var, six_d, counts, summary), res
+    tr = _score(rec, rec.name, estimator, euler, var, six_d, counts, summary)
+    tr.flags = np.asarray(res.flags, dtype=np.uint32)
+    return tr, res
 
 
 def align_output(rec: Recording, out: EstimatorOutput, time_offset_s: float = 0.0):
     """Places output rows on recording samples: each row goes to the sample nearest to its
     time (t + time_offset_s) if within half a sample period. Returns (euler (N,3), var (N,3)
     or None, counts). Rows that match no sample, or a sample already taken, are counted."""
+    euler, var, counts, _rows = _align(rec, out, time_offset_s)
+    return euler, var, counts
+
+
+def _align(rec: Recording, out: EstimatorOutput, time_offset_s: float):
+    """align_output, plus the output row placed on each sample (-1: none)."""
     n = len(rec)
     t_out = out.t + time_offset_s
     idx = np.clip(np.searchsorted(rec.t, t_out), 1, max(n - 1, 1)) if n > 1 else np.zeros(len(out), int)
@@ -158,6 +183,7 @@ def align_output(rec: Recording, out: EstimatorOutput, time_offset_s: float = 0.
     euler = np.full((n, 3), np.nan)
     var = None if out.var is None else np.full((n, 3), np.nan)
     taken = np.zeros(n, bool)
+    rows = np.full(n, -1, np.int64)
     duplicates = 0
     for row in np.nonzero(matched)[0]:
         k = idx[row]
@@ -165,6 +191,7 @@ def align_output(rec: Recording, out: EstimatorOutput, time_offset_s: float = 0.
             duplicates += 1
             continue
         taken[k] = True
+        rows[k] = row
         euler[k] = out.euler[row]
         if var is not None:
             var[k] = out.var[row]
@@ -174,18 +201,21 @@ def align_output(rec: Recording, out: EstimatorOutput, time_offset_s: float = 0.
         raise InputError(f"{out.source}: no output row falls on a sample of {rec.source} "
                          f"(output t {out.t[0]:.6g}..{out.t[-1]:.6g} s, recording "
                          f"{rec.t[0]:.6g}..{rec.t[-1]:.6g} s; see --time-offset)")
-    return euler, var, counts
+    return euler, var, counts, rows
 
 
 def evaluate_output(rec: Recording, out: EstimatorOutput, six_d: bool = False,
                     time_offset_s: float = 0.0) -> TrialEval:
     """Scores a recorded estimator output against rec's truth."""
-    euler, var, counts = align_output(rec, out, time_offset_s)
+    euler, var, counts, rows = _align(rec, out, time_offset_s)
     summary: Dict[str, object] = {}
     if out.status is not None:
         codes, num = np.unique(out.status, return_counts=True)
         summary["status_counts"] = {int(c): int(k) for c, k in zip(codes, num) if c != 0}
-    return _score(rec, rec.name, f"recorded output {out.source}", euler, var, six_d, counts, summary)
+    tr = _score(rec, rec.name, f"recorded output {out.source}", euler, var, six_d, counts, summary)
+    if out.flags is not None:
+        tr.flags = np.where(rows >= 0, out.flags[np.maximum(rows, 0)], 0).astype(np.uint32)
+    return tr
 
 
 def mean_row(trials: List[TrialEval]) -> Dict[str, float]:
