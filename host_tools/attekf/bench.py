@@ -3,30 +3,10 @@ on the same trials in one run, scored with the BROAD definitions (metrics.py). U
 `attekf bench`; docs/accuracy.md holds the latest table and explains the choices below.
 
 Every method returns, per sample, a unit quaternion [w x y z] of the body w.r.t. an ENU earth
-frame (the frame of the BROAD truth `opt_quat`), NaN where it has no estimate yet. Their own
-frames and how they are brought to ENU (checked on a synthetic recording by
-tests/python/test_bench.py, and on BROAD against the paper's published numbers):
-
-* ours (C estimator through the binding, native.py): body->ENU already. 9D with the
-  magnetometer, 6D without. NaN before the filter has aligned.
-* VQF (`vqf.offlineVQF`, the offline variant the issue asks for: acausal, it uses the whole
-  recording for rest detection / bias estimation; `vqf-online` is the causal `vqf.VQF`):
-  body->ENU by design (same authors as BROAD), quat9D / quat6D.
-* Fusion (`imufusion.Ahrs`, x-io): CONVENTION_ENU -> body->ENU. Gyro in deg/s, accelerometer
-  in g (divided by 9.81), magnetometer in uT (its rejection works on angles, units do not
-  matter). Settings: FUSION_SETTINGS below (the values of Fusion's own examples).
-* Madgwick (`ahrs.filters.Madgwick`, gain = beta = 0.12): its MARG update uses gravity along
-  +z and the horizontal field along +x, i.e. an NWU earth frame (x north, y west, z up);
-  q_ENU = qz(+90 deg) * q_NWU, as BROAD's own process_data.py does. ahrs's batch mode would
-  initialise it with ecompass(frame='NED'), inconsistent with its NWU update: that was the
-  91 deg error of the first prototype. We run its update loop ourselves from our own start.
-* Mahony (`ahrs.filters.Mahony`, k_P = 0.74, k_I = 0.0012): ahrs's MARG update references
-  the field as [0, |h_xy|, h_z], i.e. ENU already; no conversion.
-
-Fair start: Madgwick, Mahony and Fusion start from the same initial attitude, computed from
-the mean accelerometer and magnetometer of the first `init_samples` samples (default 10, our
-filter's align_samples) (6D: from the accelerometer only, heading 0). VQF initialises itself
-(its first samples), our filter aligns itself from its first align_samples samples.
+frame (the frame of the BROAD truth `opt_quat`), NaN where it has no estimate yet. Ours (the
+C estimator through the binding, native.py) is body->ENU already, 9D with the magnetometer, 6D
+without, NaN before the filter has aligned. The baselines, their settings, frames and common
+start are in baselines.py.
 
 6D scoring: the heading of a magnetometer-free estimate is arbitrary, so the mean heading
 offset (circular mean over the scored samples) is removed before scoring
@@ -53,102 +33,29 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple
 import numpy as np
 
 from . import metrics as M
+from .baselines import (FUSION_BIAS_SETTINGS, FUSION_SETTINGS, GRAVITY, MADGWICK_BETA,  # noqa: F401
+                        MAHONY_KI, MAHONY_KP, PACKAGES, Q_NWU_TO_ENU, _run_ahrs, _run_fusion,
+                        _run_vqf, enu_to_nwu, initial_quat_enu, nwu_to_enu, quat_from_matrix,
+                        start_quat)
 from .io import Recording, read_recording
 
-DEFAULT_DATA = os.environ.get("ATTEKF_BROAD_DIR", "/work/shared/data/broad")
-GRAVITY = 9.81
+REPO_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+# The BROAD trials: $ATTEKF_BROAD_DIR, else ../shared/data/broad next to this source tree
+# (docs/accuracy.md); DEFAULT_DATA_TEXT is how help and docs name it.
+DEFAULT_DATA_TEXT = "../shared/data/broad (next to the repository) or $ATTEKF_BROAD_DIR"
+DEFAULT_DATA = os.environ.get("ATTEKF_BROAD_DIR") or os.path.normpath(
+    os.path.join(REPO_ROOT, "..", "shared", "data", "broad"))
 SCHEMA_VERSION = 1
 M_KEYS = ("total", "heading", "inclination")
-
-# The BROAD paper's best common ("trial-agnostic") parameters (example_code/out/*.json)
-MADGWICK_BETA = 0.12
-MAHONY_KP = 0.74
-MAHONY_KI = 0.0012
-# Fusion: the settings of x-io's examples (gain 0.5, 2000 deg/s, rejection 10 deg, 5 s)
-FUSION_SETTINGS = {"gain": 0.5, "gyroscope_range": 2000.0, "acceleration_rejection": 10.0,
-                   "magnetic_rejection": 10.0, "rejection_timeout": 5.0}
 
 COST_NOTES = {
     "ours": "C calls only (attekf_run over whole blocks, ctypes set-up excluded)",
     "vqf": "one C++ batch call (Cython wrapper) over the recording",
-    "fusion": "per-sample Python call into the C library (includes pybind overhead, ~1 us)",
+    "fusion": "per-sample Python calls into the C library (Ahrs, and Bias unless fusion-bare; "
+              "includes the binding's overhead, ~1 us per call)",
     "madgwick": "pure-Python ahrs update per sample",
     "mahony": "pure-Python ahrs update per sample",
 }
-
-
-# ---------------------------------------------------------------------------------------------
-# Frames
-# ---------------------------------------------------------------------------------------------
-Q_NWU_TO_ENU = M.quat_about_z(np.pi / 2)   # q_ENU = Q_NWU_TO_ENU * q_NWU
-
-
-def nwu_to_enu(q_nwu: np.ndarray) -> np.ndarray:
-    """Body->NWU quaternions to body->ENU (ENU is NWU turned by +90 deg about up)."""
-    return M.quat_mul(Q_NWU_TO_ENU, q_nwu)
-
-
-def enu_to_nwu(q_enu: np.ndarray) -> np.ndarray:
-    return M.quat_mul(M.quat_conj(Q_NWU_TO_ENU), q_enu)
-
-
-def quat_from_matrix(r: np.ndarray) -> np.ndarray:
-    """Rotation matrix (3, 3) -> [w x y z] with w >= 0 (Shepperd: the largest of the four
-    candidates, so no division by a small number)."""
-    r = np.asarray(r, dtype=np.float64)
-    tr = r[0, 0] + r[1, 1] + r[2, 2]
-    cand = np.array([tr, r[0, 0], r[1, 1], r[2, 2]])
-    k = int(np.argmax(cand))
-    if k == 0:
-        s = 2.0 * math.sqrt(1.0 + tr)
-        q = [s / 4, (r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s, (r[1, 0] - r[0, 1]) / s]
-    elif k == 1:
-        s = 2.0 * math.sqrt(1.0 + r[0, 0] - r[1, 1] - r[2, 2])
-        q = [(r[2, 1] - r[1, 2]) / s, s / 4, (r[0, 1] + r[1, 0]) / s, (r[0, 2] + r[2, 0]) / s]
-    elif k == 2:
-        s = 2.0 * math.sqrt(1.0 + r[1, 1] - r[0, 0] - r[2, 2])
-        q = [(r[0, 2] - r[2, 0]) / s, (r[0, 1] + r[1, 0]) / s, s / 4, (r[1, 2] + r[2, 1]) / s]
-    else:
-        s = 2.0 * math.sqrt(1.0 + r[2, 2] - r[0, 0] - r[1, 1])
-        q = [(r[1, 0] - r[0, 1]) / s, (r[0, 2] + r[2, 0]) / s, (r[1, 2] + r[2, 1]) / s, s / 4]
-    q = np.array(q)
-    q /= np.linalg.norm(q)
-    return -q if q[0] < 0 else q
-
-
-def initial_quat_enu(acc: np.ndarray, mag: Optional[np.ndarray]) -> np.ndarray:
-    """Body->ENU attitude from one accelerometer (specific force, up at rest) and magnetometer
-    vector (None: heading 0, i.e. body x in the east-up plane). Raises ValueError if the
-    vectors are zero or parallel."""
-    up = np.asarray(acc, dtype=np.float64)
-    if not np.linalg.norm(up) > 0:
-        raise ValueError("zero accelerometer vector")
-    up = up / np.linalg.norm(up)
-    if mag is None:
-        # heading is arbitrary (6D): take north along the horizontal part of body y (body x if
-        # body y is near vertical)
-        ref = np.array([0.0, 1.0, 0.0]) if abs(up[1]) < 0.9 else np.array([1.0, 0.0, 0.0])
-        north = ref - np.dot(ref, up) * up
-    else:
-        m = np.asarray(mag, dtype=np.float64)
-        north = m - np.dot(m, up) * up            # horizontal part of the field points north
-    if not np.linalg.norm(north) > 1e-9:
-        raise ValueError("magnetometer parallel to gravity")
-    north = north / np.linalg.norm(north)
-    east = np.cross(north, up)
-    # rows = earth axes in body coordinates: maps body vectors to ENU
-    return quat_from_matrix(np.vstack([east, north, up]))
-
-
-def start_quat(rec: Recording, n: int, use_mag: bool) -> np.ndarray:
-    """The common initial attitude (body->ENU) of the baselines: mean of the first n samples."""
-    n = max(1, min(int(n), len(rec)))
-    acc = rec.acc[:n].mean(axis=0)
-    mag = None
-    if use_mag and rec.mag is not None:
-        rows = rec.mag[:n][np.all(np.isfinite(rec.mag[:n]), axis=1)]
-        mag = rows.mean(axis=0) if len(rows) else None
-    return initial_quat_enu(acc, mag)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -190,8 +97,12 @@ BASE_METHODS: List[Method] = [
     Method("vqf-6d", "vqf", True, "VQF offline 6D"),
     Method("vqf-online-9d", "vqf", False, "VQF online (causal) 9D", default=False),
     Method("vqf-online-6d", "vqf", True, "VQF online (causal) 6D", default=False),
-    Method("fusion-9d", "fusion", False, "Fusion (imufusion) 9D"),
-    Method("fusion-6d", "fusion", True, "Fusion (imufusion) 6D"),
+    Method("fusion-9d", "fusion", False, "Fusion (imufusion) 9D, with its gyroscope bias correction"),
+    Method("fusion-6d", "fusion", True, "Fusion (imufusion) 6D, with its gyroscope bias correction"),
+    Method("fusion-bare-9d", "fusion", False, "Fusion (imufusion) 9D, AHRS alone (no bias correction)",
+           default=False),
+    Method("fusion-bare-6d", "fusion", True, "Fusion (imufusion) 6D, AHRS alone (no bias correction)",
+           default=False),
     Method("madgwick-9d", "madgwick", False, f"Madgwick (ahrs) beta {MADGWICK_BETA} 9D"),
     Method("madgwick-6d", "madgwick", True, f"Madgwick (ahrs) beta {MADGWICK_BETA} 6D", default=False),
     Method("mahony-9d", "mahony", False, f"Mahony (ahrs) Kp {MAHONY_KP} Ki {MAHONY_KI} 9D"),
@@ -331,88 +242,6 @@ def _run_ours(rec: Recording, m: Method, cfg: RunConfig) -> Tuple[np.ndarray, fl
     extra["samples_refused"] = summary["samples_refused"]
     extra["not_aligned"] = int((~res.aligned).sum())
     return q, res.c_seconds, extra
-
-
-def _run_vqf(rec: Recording, m: Method, cfg: RunConfig):
-    import vqf
-    ts = 1.0 / rec.rate_hz
-    gyr = np.ascontiguousarray(rec.gyr, dtype=np.float64)
-    acc = np.ascontiguousarray(rec.acc, dtype=np.float64)
-    mag = None if m.six_d or rec.mag is None else np.ascontiguousarray(rec.mag, dtype=np.float64)
-    t0 = time.process_time()
-    if m.key.startswith("vqf-online"):
-        f = vqf.VQF(ts)
-        out = f.updateBatch(gyr, acc, mag) if mag is not None else f.updateBatch(gyr, acc)
-    else:
-        out = vqf.offlineVQF(gyr, acc, mag, ts)
-    sec = time.process_time() - t0
-    return np.asarray(out["quat6D" if m.six_d else "quat9D"], dtype=np.float64), sec, {}
-
-
-def _run_fusion(rec: Recording, m: Method, cfg: RunConfig):
-    import imufusion
-    # set as attributes: imufusion 1.3.3's AhrsSettings(convention=...) keyword is silently
-    # ignored (stays NWU, which gave a 90 deg heading error); read back to be sure
-    s = imufusion.AhrsSettings()
-    wanted = dict(cfg.fusion, sample_rate=float(rec.rate_hz), convention=imufusion.CONVENTION_ENU)
-    for k, v in wanted.items():
-        setattr(s, k, v)
-    for k, v in wanted.items():
-        if not math.isclose(float(getattr(s, k)), float(v), rel_tol=1e-6):
-            raise RuntimeError(f"imufusion did not take setting {k}={v} (reads {getattr(s, k)})")
-    ahrs = imufusion.Ahrs()
-    ahrs.set_settings(s)
-    ahrs.set_quaternion(start_quat(rec, cfg.init_samples, use_mag=not m.six_d))
-    gyr = np.degrees(rec.gyr)
-    acc = rec.acc / GRAVITY
-    n = len(rec)
-    q = np.empty((n, 4))
-    sec = 0.0
-    if m.six_d:
-        t0 = time.process_time()
-        for i in range(n):
-            ahrs.update_no_magnetometer(gyr[i], acc[i])
-            q[i] = ahrs.get_quaternion()
-        sec = time.process_time() - t0
-    else:
-        mag = rec.mag
-        t0 = time.process_time()
-        for i in range(n):
-            ahrs.update(gyr[i], acc[i], mag[i])
-            q[i] = ahrs.get_quaternion()
-        sec = time.process_time() - t0
-    return q, sec, {}
-
-
-def _run_ahrs(rec: Recording, m: Method, cfg: RunConfig):
-    from ahrs.filters import Madgwick, Mahony
-    rate = float(rec.rate_hz)
-    q0 = start_quat(rec, cfg.init_samples, use_mag=not m.six_d)
-    if m.family == "madgwick":
-        f = Madgwick(gain=MADGWICK_BETA, frequency=rate)
-        q0 = enu_to_nwu(q0)    # Madgwick's earth frame is NWU (see the module docstring)
-    else:
-        f = Mahony(k_P=MAHONY_KP, k_I=MAHONY_KI, frequency=rate)
-    n = len(rec)
-    q = np.empty((n, 4))
-    q[0] = q0
-    gyr, acc, mag = rec.gyr, rec.acc, rec.mag
-    t0 = time.process_time()
-    if m.six_d or mag is None:
-        upd = f.updateIMU
-        for i in range(1, n):
-            q[i] = upd(q[i - 1], gyr[i], acc[i])
-    else:
-        upd = f.updateMARG
-        for i in range(1, n):
-            q[i] = upd(q[i - 1], gyr[i], acc[i], mag[i])
-    sec = time.process_time() - t0
-    if m.family == "madgwick":
-        q = nwu_to_enu(q)
-    return q, sec, {}
-
-
-PACKAGES = {"vqf": "vqf", "fusion": "imufusion", "madgwick": "ahrs", "mahony": "ahrs"}
 
 
 def missing_packages(methods: Sequence[Method]) -> Dict[str, str]:
@@ -720,6 +549,26 @@ def clean_json(obj):
     return obj
 
 
+def _worker_init() -> None:
+    """Pool workers leave Ctrl-C to the parent (which stops the pool and reports once) and
+    end quietly on the pool's SIGTERM."""
+    import signal
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def display_path(path: str) -> str:
+    """A path as results name it: relative to the repository when inside it or next to it
+    (build/host/..., ../shared/data/broad), so that no machine's directory ends up in docs."""
+    full = os.path.abspath(path)
+    parent = os.path.dirname(REPO_ROOT)
+    if full == REPO_ROOT or full.startswith(REPO_ROOT + os.sep):
+        return os.path.relpath(full, REPO_ROOT)
+    if full.startswith(parent + os.sep):
+        return os.path.relpath(full, REPO_ROOT)
+    return path
+
+
 def run_benchmark(trial_paths: List[str], methods: List[Method], cfg: RunConfig, jobs: int = 1,
                   progress=None, data_dir: Optional[str] = None) -> Dict[str, object]:
     """Runs every method on every trial (a pool of `jobs` processes over (trial, method) pairs)
@@ -735,7 +584,7 @@ def run_benchmark(trial_paths: List[str], methods: List[Method], cfg: RunConfig,
     t_wall = time.perf_counter()
     if jobs > 1 and len(tasks) > 1:
         import multiprocessing as mp
-        with mp.get_context("fork").Pool(jobs) as pool:
+        with mp.get_context("fork").Pool(jobs, initializer=_worker_init) as pool:
             for row in pool.imap_unordered(run_task, tasks, chunksize=1):
                 rows.append(row)
                 if progress:
@@ -750,12 +599,11 @@ def run_benchmark(trial_paths: List[str], methods: List[Method], cfg: RunConfig,
     if any(m.family == "ours" for m in methods):
         ours_settings = native.default_settings(cfg.scalar)
         ours_settings.update(cfg.settings)
-    repo = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     result = {
         "schema": SCHEMA_VERSION,
-        "git": git_info(repo),
+        "git": git_info(REPO_ROOT),
         "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-        "data_dir": data_dir or os.path.dirname(trial_paths[0]),
+        "data_dir": display_path(data_dir or os.path.dirname(trial_paths[0])),
         "trials": trials,
         "group_names": group_names,
         "scoring": {"error": "e = q_est * inv(q_ref) (earth frame)", "total": "2 acos|e_w|",
@@ -771,11 +619,13 @@ def run_benchmark(trial_paths: List[str], methods: List[Method], cfg: RunConfig,
         "ours": {"scalar": cfg.scalar, "settings": ours_settings, "settings_changed": dict(cfg.settings)},
         "baselines": {"madgwick": {"beta": MADGWICK_BETA, "frame": "NWU -> ENU by qz(90 deg)"},
                       "mahony": {"kp": MAHONY_KP, "ki": MAHONY_KI, "frame": "ENU"},
-                      "fusion": dict(cfg.fusion, convention="ENU"),
+                      "fusion": dict(cfg.fusion, convention="ENU",
+                                     bias="imufusion.Bias in front of the AHRS (fusion-bare-*: none)"),
                       "vqf": {"params": "defaults", "offline": True},
                       "init": f"mean acc/mag of the first {cfg.init_samples} samples "
                               "(Madgwick, Mahony, Fusion); VQF and ours initialise themselves"},
-        "library": (str(native.load(cfg.scalar).path) if any(m.family == "ours" for m in methods) else None),
+        "library": (display_path(str(native.load(cfg.scalar).path)) if any(m.family == "ours" for m in methods)
+                    else None),
         "packages": package_versions(),
         "machine": dict(machine_info(), jobs=jobs),
         "wall_seconds": wall,

@@ -8,7 +8,8 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
-BROAD_DIR = Path(os.environ.get("ATTEKF_BROAD_DIR", "/work/shared/data/broad"))
+# $ATTEKF_BROAD_DIR, else ../shared/data/broad next to the repository (as attekf.bench)
+BROAD_DIR = Path(os.environ.get("ATTEKF_BROAD_DIR") or REPO.parent / "shared" / "data" / "broad")
 
 
 @pytest.fixture(scope="session")

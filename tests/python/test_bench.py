@@ -17,7 +17,7 @@ from attekf import metrics as M
 from attekf.cli import main
 from attekf.sim import SimConfig, simulate
 
-BROAD_DIR = Path(os.environ.get("ATTEKF_BROAD_DIR", "/work/shared/data/broad"))  # as conftest.py
+BROAD_DIR = Path(B.DEFAULT_DATA)   # $ATTEKF_BROAD_DIR or ../shared/data/broad next to the repository
 
 
 # ---------------------------------------------------------------------------------------------
@@ -127,7 +127,8 @@ def test_baseline_outputs_are_body_to_enu(sim12, key):
 def test_the_frame_check_catches_a_missing_conversion(sim12, monkeypatch):
     """Without the NWU -> ENU turn Madgwick's heading is off by about 90 deg: the check above
     would fail."""
-    monkeypatch.setattr(B, "nwu_to_enu", lambda q: q)
+    from attekf import baselines
+    monkeypatch.setattr(baselines, "nwu_to_enu", lambda q: q)
     m = B.all_methods()["madgwick-9d"]
     r = B.score(sim12, B.run_method(sim12, m, B.RunConfig())[0], False)
     assert r["heading"] > 45.0

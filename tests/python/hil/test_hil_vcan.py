@@ -30,7 +30,7 @@ from hilutil import report
 RATE_SIM_HZ = 200.0
 OUT_PERIOD_US = 10000        # the node's default output rate, 100 Hz
 BROAD_TRIAL = "07_undisturbed_fast_rotation_B.hdf5"
-BROAD_DIR = Path(os.environ.get("ATTEKF_BROAD_DIR", "/work/shared/data/broad"))
+BROAD_DIR = Path(os.environ.get("ATTEKF_BROAD_DIR") or Path(__file__).resolve().parents[4] / "shared/data/broad")
 FAULT_SECONDS = 6.0
 LATE_PART = 1000             # sample of the late faults (after the bounce)
 BOUNCE = (3.0, 0.3)          # vcan0 down AFTER s after the first frame, for DOWN s
