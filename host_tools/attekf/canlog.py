@@ -230,6 +230,10 @@ def _blf(path: str, st: LogStats) -> Iterator[Frame]:
     if size < B.FILE_HEADER_STRUCT.size:
         raise InputError(f"{path}: not a BLF file ({size} bytes, shorter than the "
                          f"{B.FILE_HEADER_STRUCT.size}-byte header)")
+    with open(path, "rb") as fh:
+        head = B.FILE_HEADER_STRUCT.unpack(fh.read(B.FILE_HEADER_STRUCT.size))
+    if head[0] != b"LOGG" or not B.FILE_HEADER_STRUCT.size <= head[1] <= 4096:
+        raise InputError(f"{path}: not a BLF file (no 'LOGG' header of a plausible size)")
     try:
         reader = B.BLFReader(path)
     except (B.BLFParseError, struct.error, ValueError, OSError):

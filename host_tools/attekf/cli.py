@@ -51,12 +51,14 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--version", action="version", version=f"attekf {__version__}")
     sub = ap.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
     sub.required = True
+    ap.commands = {}
     for mod in _command_modules():
         p = sub.add_parser(mod.NAME, help=mod.HELP, description=getattr(mod, "DESCRIPTION", mod.HELP),
                            formatter_class=argparse.RawDescriptionHelpFormatter)
         p.add_argument("-q", "--quiet", action="store_true", help="no progress bars or chatter")
         mod.add_arguments(p)
         p.set_defaults(_run=mod.run)
+        ap.commands[mod.NAME] = p
     return ap
 
 
@@ -67,8 +69,11 @@ def _terminate(_sig, _frame):
 def main(argv: Optional[List[str]] = None) -> int:
     """Runs one command; returns its exit status (--help and --version exit 0 through
     SystemExit, as argparse does)."""
+    ap = build_parser()
     try:
-        args = build_parser().parse_args(argv)
+        args, extra = ap.parse_known_args(argv)
+        if extra:   # reported by the command's parser, so the line names the command
+            ap.commands[args.command].error(f"unrecognized arguments: {' '.join(extra)}")
     except UsageExit as exc:
         return int(exc.code)
     old = None

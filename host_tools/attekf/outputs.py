@@ -26,7 +26,7 @@ import threading
 from contextlib import contextmanager
 from typing import Dict, Iterable, List, Optional
 
-from .errors import OutputError, UsageError
+from .errors import Interrupted, OutputError, UsageError
 
 PARTIAL_PREFIX = ".partial-"
 
@@ -197,16 +197,21 @@ class Outputs:
     # -- finishing --------------------------------------------------------------------------
     def commit(self) -> List[str]:
         """Renames every written temporary file into place; returns the final paths."""
-        done = []
-        with _signals_deferred():
-            for key, tmp in self._temp.items():
-                final = self._final[key]
-                try:
-                    os.replace(tmp, final)
-                except OSError as exc:
-                    raise OutputError(f"{final}: cannot write: {exc.strerror or exc}") from None
-                done.append(final)
-            self._temp.clear()
+        done: List[str] = []
+        try:
+            with _signals_deferred():
+                for key, tmp in list(self._temp.items()):
+                    final = self._final[key]
+                    try:
+                        os.replace(tmp, final)
+                    except OSError as exc:
+                        raise OutputError(f"{final}: cannot write: {exc.strerror or exc}") from None
+                    del self._temp[key]
+                    done.append(final)
+        except KeyboardInterrupt:
+            # a signal that came during the renames is delivered once they are done
+            self.committed, self._made_dirs = done, []
+            raise Interrupted(f"after the outputs were complete and in place ({len(done)} file(s))") from None
         self.committed = done
         self._made_dirs = []
         return done

@@ -147,7 +147,19 @@ def _legend_extra(tr: TrialEval):
 # The figure
 # ---------------------------------------------------------------------------------------------
 def plot_trial(tr: TrialEval, path: str, dpi: int = 110) -> str:
-    """Writes the trial's figure (module docstring) as a PNG to path; returns path."""
+    """Writes the trial's figure (module docstring) as a PNG to path (atomically); returns path."""
+    from .outputs import atomic_path
+    fig = trial_figure(tr)
+    try:
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=dpi, format="png")
+    finally:
+        plt.close(fig)
+    return path
+
+
+def trial_figure(tr: TrialEval):
+    """The trial's figure (module docstring); the caller closes it."""
     t = tr.t
     fig, axes = plt.subplots(4, 2, figsize=(14, 10.5), sharex=True, constrained_layout=True,
                              gridspec_kw={"height_ratios": [1, 1, 1, 1.1]})
@@ -223,11 +235,7 @@ def plot_trial(tr: TrialEval, path: str, dpi: int = 110) -> str:
     axes[3, 1].set_xlabel("t (s)")
     if len(t):
         axes[0, 0].set_xlim(t[0], t[-1])
-    from .outputs import atomic_path
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=dpi, format="png")
-    plt.close(fig)
-    return path
+    return fig
 
 
 def _plot_flags(ax, tr: TrialEval) -> None:

@@ -113,7 +113,8 @@ def sim12():
 
 
 @pytest.mark.parametrize("key", ["vqf-9d", "vqf-6d", "vqf-online-9d", "fusion-9d", "fusion-6d",
-                                 "madgwick-9d", "madgwick-6d", "mahony-9d", "mahony-6d"])
+                                 "fusion-bare-9d", "fusion-bare-6d", "madgwick-9d", "madgwick-6d",
+                                 "mahony-9d", "mahony-6d"])
 def test_baseline_outputs_are_body_to_enu(sim12, key):
     """On a synthetic recording with known ENU truth every baseline, converted, is within a few
     degrees (measured 0.2..3.6 deg); a frame mistake (NWU/NED/inverse) gives 45..180 deg."""
@@ -132,6 +133,40 @@ def test_the_frame_check_catches_a_missing_conversion(sim12, monkeypatch):
     m = B.all_methods()["madgwick-9d"]
     r = B.score(sim12, B.run_method(sim12, m, B.RunConfig())[0], False)
     assert r["heading"] > 45.0
+
+
+def test_fusion_runs_with_its_gyroscope_bias_correction():
+    """fusion-9d/6d put imufusion.Bias in front of the AHRS (as x-io's examples do); the bare
+    AHRS is kept as fusion-bare-*. With a constant gyro offset and rests longer than Bias's 3 s,
+    the offset is learnt: the estimate drifts less than the bare one."""
+    rec = simulate(SimConfig(duration_s=60.0, rate_hz=100.0, seed=4, gyro_bias_rad_s=0.02, initial_rest_s=8.0,
+                             pause_s=(4.0, 6.0), pause_probability=0.8, max_tilt_deg=30.0))
+    cfg = B.RunConfig()
+    res = {}
+    for key in ("fusion-6d", "fusion-bare-6d"):
+        q, _sec, extra = B.run_method(rec, B.all_methods()[key], cfg)
+        res[key] = (B.score(rec, q, True), extra)
+    learnt = np.radians(res["fusion-6d"][1]["fusion_bias_deg_s"])
+    truth = np.array(json.loads(rec.meta["gyro_bias_rad_s"]))
+    np.testing.assert_allclose(learnt, truth, atol=0.004)
+    assert "fusion_bias_deg_s" not in res["fusion-bare-6d"][1]
+    assert res["fusion-6d"][0]["total"] < 0.7 * res["fusion-bare-6d"][0]["total"], res
+    assert [m.key for m in B.select_methods("fusion")] == ["fusion-9d", "fusion-6d"]
+    assert cfg.fusion["bias_stationary_threshold"] == 3.0 and cfg.fusion["bias_stationary_period"] == 3.0
+
+
+def test_data_directory_default_is_not_a_machine_path(monkeypatch):
+    import importlib
+    monkeypatch.delenv("ATTEKF_BROAD_DIR", raising=False)
+    bench = importlib.reload(B)
+    try:
+        repo = Path(__file__).resolve().parents[2]
+        assert Path(bench.DEFAULT_DATA) == repo.parent / "shared" / "data" / "broad"
+        assert bench.display_path(bench.DEFAULT_DATA) == os.path.join("..", "shared", "data", "broad")
+        assert bench.display_path(str(repo / "build" / "x.so")) == os.path.join("build", "x.so")
+    finally:
+        monkeypatch.undo()
+        importlib.reload(B)
 
 
 def test_method_selection():

@@ -68,7 +68,7 @@ def test_eval_settings_and_scalar(tmp_path, capsys):
     (["eval", "{d}/missing.csv"], 1, "missing.csv: no such file"),
     (["eval", "{d}/bad.csv"], 1, "bad.csv: line 3: t_s"),
     (["eval", "{d}/a.csv", "--set", "nope=1"], 2, "unknown setting 'nope'"),
-    (["eval", "{d}/a.csv", "--set", "accel_noise"], 1, "expected NAME=VALUE"),
+    (["eval", "{d}/a.csv", "--set", "accel_noise"], 2, "expected NAME=VALUE"),
     (["eval", "{d}/a.csv", "--set", "gimbal_limit=3"], 2, "gimbal_limit=3.0 out of range"),
     (["eval", "{d}", "--output-csv", "{d}/a.csv"], 2, "--output-csv scores one recording, 2 given"),
     (["eval", "{d}/a.csv", "--output-csv", "{d}/a.csv"], 1, "missing column(s) roll_rad"),
@@ -108,10 +108,27 @@ def test_console_script_runs():
 
 
 def test_demo_script(repo_root, tmp_path):
-    """The main job (scripts/demo.sh) runs and writes its table and plots."""
+    """The main job (scripts/demo.sh) runs and writes its table and plots, and every path
+    under out/demo/ that the docs or a command's help names is one it writes."""
+    import re
+    from attekf.cli import _command_modules
     r = subprocess.run([str(repo_root / "scripts" / "demo.sh"), str(tmp_path / "demo")],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
     assert "mean of 2" in r.stdout
     for f in ("table.txt", "results.json", "undisturbed.png", "disturbed.png"):
         assert (tmp_path / "demo" / f).stat().st_size > 0, f
+    texts = [(repo_root / "README.md").read_text()] + [p.read_text() for p in (repo_root / "docs").glob("*.md")]
+    texts += [getattr(m, "DESCRIPTION", "") for m in _command_modules()]
+    texts.append((repo_root / "scripts" / "demo.sh").read_text())
+    named = {m for t in texts for m in re.findall(r"out/demo/[\w./-]*[\w]", t)}
+    assert "out/demo/recordings/undisturbed.csv" in named
+    for path in sorted(named):
+        assert (tmp_path / "demo" / path[len("out/demo/"):]).exists(), f"documented but not written: {path}"
+    # the simulator prints the disturbance episodes; the disturbed plot's recording declares them
+    from attekf.io import read_recording
+    from attekf.evaluate import recording_episodes
+    eps = recording_episodes(read_recording(str(tmp_path / "demo" / "recordings" / "disturbed.csv")))
+    assert len(eps) == 4
+    for kind, a, b in eps:
+        assert f"{kind.replace('_', ' ')} {a:.1f}-{b:.1f} s" in r.stdout

@@ -38,7 +38,11 @@ def test_csv_round_trip(tmp_path, sim_recording):
     assert np.isnan(back.mag[5]).all() and np.isnan(back.quat_ref[7]).all()
     np.testing.assert_array_equal(back.movement, rec.movement)
     assert back.rate_hz == pytest.approx(100.0)
-    assert back.where(0) == "line 2"
+    # the simulator's metadata goes into '# key: value' lines before the header, and back
+    lines = open(path).read().splitlines()
+    first = int(back.where(0).split()[1])
+    assert lines[first - 2].startswith("t_s,") and float(lines[first - 1].split(",")[0]) == rec.t[0]
+    assert back.meta["generator"] == "attekf sim" and "episodes" in back.meta
 
 
 def test_hdf5_round_trip_broad_layout(tmp_path, sim_recording):

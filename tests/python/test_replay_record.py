@@ -115,7 +115,7 @@ def test_replay_errors_are_one_line_and_non_zero(rec_csv, tmp_path, capsys):
         (["replay", str(tmp_path / "missing.csv"), "--to-log", "x.log"], 1, "no such file"),
         (["replay", str(rec_csv)], 2, "either"),
         (["replay", str(rec_csv), "-i", "virtual", "--to-log", "x.log"], 2, "either"),
-        (["replay", str(rec_csv), "-i", "nosuchbus", "-c", "x"], 1, "unknown python-can interface"),
+        (["replay", str(rec_csv), "-i", "nosuchbus", "-c", "x"], 2, "unknown python-can interface"),
         (["replay", str(rec_csv), "--to-log", "x.log", "--speed", "0"], 2, "--speed"),
         (["replay", str(rec_csv), "--to-log", "x.log", "--start", "50"], 1, "no samples"),
     ]
@@ -196,8 +196,9 @@ def test_record_errors(tmp_path, capsys):
     assert attekf(["record", "--from-log", str(tmp_path / "none.log")]) == 2
     assert "nothing to write" in capsys.readouterr().err
     assert attekf(["record", "-i", "virtual", "-c", "x", "--from-log", "y.log", "--stats", "s.json"]) == 2
-    assert attekf(["record", "-i", "nosuchbus", "-c", "x", "--stats", str(tmp_path / "s.json")]) == 1
+    assert attekf(["record", "-i", "nosuchbus", "-c", "x", "--stats", str(tmp_path / "s.json")]) == 2
     assert "unknown python-can interface" in capsys.readouterr().err
+    assert not (tmp_path / "s.json").exists()
 
 
 def test_record_stops_after_idle_and_counts(tmp_path):

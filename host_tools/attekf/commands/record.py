@@ -44,7 +44,7 @@ failed run leaves none (and an interface that cannot be opened leaves no empty -
 
 python-can's 'virtual' interface connects only buses inside one process: nothing another
 program (attekf replay, attekf-node) sends reaches `attekf record -i virtual`. Between
-processes use socketcan (vcan0: docs/hil.md) or udp_multicast.
+processes use socketcan (vcan0: docs/hil.md).
 
 examples:
   attekf record -i socketcan -c vcan0 -o bus.log --csv att.csv
@@ -309,7 +309,7 @@ def record_bus(rec: Recorder, bus, logger, duration: float, idle: float, count: 
 
 VIRTUAL_WARNING = ("warning: python-can's 'virtual' interface reaches only buses in this same "
                    "process: frames another program sends (attekf replay, attekf-node) never "
-                   "arrive here; between processes use -i socketcan -c vcan0 or -i udp_multicast")
+                   "arrive here; between processes use -i socketcan -c vcan0 (docs/hil.md)")
 
 
 def run(args) -> int:

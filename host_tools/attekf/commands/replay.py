@@ -41,13 +41,13 @@ complete: an interrupted run leaves no log.
 
 python-can's 'virtual' interface connects only buses inside one process: frames replayed on
 it from this command reach no other program (attekf record, attekf-node). Between processes
-use socketcan (vcan0: docs/hil.md) or udp_multicast.
+use socketcan (vcan0: docs/hil.md).
 
 examples:
   attekf replay rec.csv -i socketcan -c vcan0
   attekf replay trial.hdf5 -i socketcan -c can0 --start 10 --stop 40 --speed 2
   attekf replay rec.csv --to-log frames.log          (for attekf-node --replay)
-  attekf replay bus.log -i udp_multicast --fast --loop 3
+  attekf replay bus.log -i socketcan -c vcan0 --fast --loop 3
 """
 
 RECORDING_EXT = (".csv", ".hdf5", ".h5")
@@ -59,7 +59,7 @@ ReplayError = InputError
 
 VIRTUAL_WARNING = ("warning: python-can's 'virtual' interface reaches only buses in this same "
                    "process: no other program (attekf record, attekf-node) receives these frames; "
-                   "between processes use -i socketcan -c vcan0 or -i udp_multicast")
+                   "between processes use -i socketcan -c vcan0 (docs/hil.md)")
 
 
 @dataclass
