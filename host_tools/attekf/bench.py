@@ -313,7 +313,7 @@ def find_trials(data_dir: str, select: Optional[str] = None, limit: Optional[int
             hit = [f for f in files if f.startswith(tok) or os.path.splitext(f)[0] == tok
                    or fnmatch.fnmatch(f, tok) or fnmatch.fnmatch(os.path.splitext(f)[0], tok)]
             if not hit:
-                raise FileNotFoundError(f"{data_dir}: no trial matches '{tok}'")
+                raise ValueError(f"--trials {tok}: no trial of {data_dir} matches")
             chosen += [f for f in hit if f not in chosen]
         files = [f for f in files if f in chosen]
     if limit is not None:

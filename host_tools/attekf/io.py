@@ -253,6 +253,9 @@ def _read_recording_hdf5(path: str) -> Recording:
                 a = np.asarray(fh[name][()])
             except Exception as exc:  # h5py raises many types for corrupt data
                 raise InputError(f"{path}: dataset '{name}': cannot read: {exc}") from None
+            if a.dtype.kind not in "biuf":
+                raise InputError(f"{path}: dataset '{name}': values of type {a.dtype} "
+                                 "(expected real numbers)")
             if width is None:
                 if a.ndim != 1:
                     raise InputError(f"{path}: dataset '{name}': shape {a.shape}, expected (N,)")

@@ -275,6 +275,24 @@ def test_usage_errors_exit_2(files, tmp_path, capsys):
         check(capsys, argv, 2, fragment, workdir=tmp_path)
 
 
+def test_hdf5_of_the_wrong_kind(tmp_path, capsys):
+    import h5py
+    with h5py.File(tmp_path / "s.hdf5", "w") as fh:
+        fh.create_dataset("imu_gyr", data=np.array([[b"ab", b"cd", b"ef"]] * 5))
+        fh.create_dataset("imu_acc", data=np.zeros((5, 3)))
+        fh.attrs["sampling_rate"] = 100.0
+    check(capsys, ["eval", tmp_path / "s.hdf5"], 1, "s.hdf5: dataset 'imu_gyr': values of type |S2")
+    (tmp_path / "cut.hdf5").write_bytes(b"\x89HDF\r\n\x1a\n" + bytes(100))
+    check(capsys, ["eval", tmp_path / "cut.hdf5"], 1, "cut.hdf5: cannot read as HDF5")
+
+
+def test_bench_trial_selection_and_data(tmp_path, capsys):
+    assert attekf(["sim", "-q", str(tmp_path / "t1.hdf5"), "--duration", "5"]) == 0
+    check(capsys, ["bench", "--data", tmp_path, "--trials", "99", "--methods", "ours-9d"], 2,
+          "--trials 99: no trial of")
+    check(capsys, ["bench", "--data", tmp_path / "none", "--methods", "ours-9d"], 1, "none: no such directory")
+
+
 def test_empty_log_replay_and_record_agree(tmp_path, capsys):
     (tmp_path / "empty.log").write_text("")
     for argv in (["replay", tmp_path / "empty.log", "--to-log", tmp_path / "x.log"],

@@ -103,6 +103,8 @@ def test_run_command_maps_every_error(capsys):
                             (NativeError("library\nmissing"), 1, "library missing"),
                             (KeyboardInterrupt(), 130, "interrupted: nothing written"),
                             (Interrupted("after 3 of 9"), 130, "interrupted: after 3 of 9"),
+                            (OSError(28, "No space left on device", "out.csv"), 1,
+                             "error: out.csv: No space left on device"),
                             (ZeroDivisionError("boom"), 1, "internal error ZeroDivisionError: boom")):
         assert run_command("x", raising(exc)) == code
         err = capsys.readouterr().err

@@ -6,7 +6,6 @@ alike."""
 
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import sys
@@ -58,6 +57,10 @@ def run_command(command: str, body: Callable[[], int]) -> int:
         return 1
     except MemoryError:
         _say(command, "error: out of memory")
+        return 1
+    except OSError as exc:   # the machine refused (disk full, I/O error): not a defect
+        where = f"{exc.filename}: " if exc.filename else ""
+        _say(command, f"error: {where}{exc.strerror or ' '.join(str(exc).split())}")
         return 1
     except Exception as exc:  # a defect: still one line, but say that it is one
         if os.environ.get("ATTEKF_TRACEBACK"):

@@ -197,6 +197,8 @@ def run(args: argparse.Namespace) -> int:
             paths = bench.find_trials(args.data, args.trials, args.limit)
         except FileNotFoundError as exc:
             raise InputError(str(exc)) from None
+        except ValueError as exc:     # --trials names no trial
+            raise UsageError(str(exc)) from None
         if not paths:
             raise UsageError("no trial selected")
         out.inputs(paths)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
 import signal
 import threading
 import socket
@@ -343,6 +342,10 @@ def run(args) -> int:
             if stop_flag[0]:
                 raise Interrupted(f"after {rec.frames} frames of {args.from_log}: nothing written "
                                   "(outputs are only put in place when complete)")
+            skipped = [f"{n} {k}" for k, n in (("error", logstats.error_frames), ("remote", logstats.remote_frames),
+                                               ("CAN FD", logstats.fd_frames)) if n]
+            if skipped and not args.quiet:
+                print(f"attekf record: {args.from_log}: skipped {', '.join(skipped)} frame(s)", file=sys.stderr)
         else:
             bus = open_bus(args.interface, args.channel, args.bitrate)
             if args.interface == "virtual":
