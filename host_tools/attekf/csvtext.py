@@ -8,7 +8,10 @@ ambiguous is refused with the reason: another delimiter (';' or tab, as spreadsh
 to a decimal comma write), UTF-16 text, bytes that are not UTF-8.
 
 Lines starting with '#' before the header are comments; ``# key: value`` comments are
-returned as metadata (attekf sim writes its settings and disturbance episodes there).
+returned as (key, value) pairs, in file order (attekf sim writes its generator, gyro bias
+and one ``# episode: KIND START_S STOP_S`` line per disturbance episode there). Written
+comment lines stay short (COMMENT_MAX characters): other readers of these files, such as the
+firmware's host build (firmware/target/hal_target.c), take lines of at most 1023 characters.
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ import numpy as np
 from .errors import InputError
 
 PROGRESS_ROWS = 10000  # data lines between progress callbacks
+COMMENT_MAX = 200      # characters of a written '# key: value' line
 DELIMITERS = {";": "';'", "\t": "tab"}
 
 
@@ -88,10 +92,10 @@ def parse_csv(path: str, required: Sequence[str], optional_groups: Sequence[Sequ
     only_known: parse just these columns, ignore the others; else every column, and with
     keep_other the columns outside required/groups/allow_empty are read leniently (empty =
     NaN; a column holding text is left out). Returns (columns dict name -> float array,
-    header list, line numbers array, metadata dict from '# key: value' comments).
+    header list, line numbers array, list of (key, value) from '# key: value' comments).
     """
     lines = read_text_lines(path)
-    meta: Dict[str, str] = {}
+    meta: List[Tuple[str, str]] = []
     header_idx = None
     for i, line in enumerate(lines):
         s = line.strip()
@@ -100,7 +104,7 @@ def parse_csv(path: str, required: Sequence[str], optional_groups: Sequence[Sequ
         if s.startswith("#"):
             key, sep, value = s[1:].partition(":")
             if sep and key.strip() and " " not in key.strip():
-                meta[key.strip()] = value.strip()
+                meta.append((key.strip(), value.strip()))
             continue
         header_idx = i
         break
@@ -204,10 +208,12 @@ def _check_groups(path: str, cols: Dict[str, np.ndarray], allow_empty: Dict[str,
 
 
 def comment_lines(meta: Dict[str, object]) -> List[Tuple[str, str]]:
-    """(key, value) pairs of metadata that can be written as '# key: value' lines."""
+    """(key, value) pairs of metadata to write as '# key: value' lines: the entries whose
+    line fits in COMMENT_MAX characters (longer ones, e.g. attekf sim's full settings, are
+    kept by HDF5 files only)."""
     out = []
     for k, v in meta.items():
         text = " ".join(str(v).split())
-        if k and " " not in k and ":" not in k:
+        if k and " " not in k and ":" not in k and len(k) + len(text) + 4 <= COMMENT_MAX:
             out.append((k, text))
     return out

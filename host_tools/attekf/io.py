@@ -206,9 +206,10 @@ def _read_recording_csv(path: str, progress=None) -> Recording:
     optional_empty = {c: "magnetometer" for c in COLS_MAG}
     optional_empty.update({c: "quaternion" for c in COLS_QUAT})
     known = (COL_T,) + COLS_GYR + COLS_ACC + COLS_MAG + COLS_QUAT + (COL_MOVEMENT,)
-    cols, header, lines, meta = parse_csv(path, (COL_T,) + COLS_GYR + COLS_ACC,
-                                          (COLS_MAG, COLS_QUAT), optional_empty, only_known=known,
-                                          progress=progress)
+    cols, header, lines, comments = parse_csv(path, (COL_T,) + COLS_GYR + COLS_ACC,
+                                              (COLS_MAG, COLS_QUAT), optional_empty, only_known=known,
+                                              progress=progress)
+    meta = _meta_from_comments(comments)
     t = cols[COL_T]
     _check_time(path, t, lambda k: f"line {lines[k]}")
     rec = Recording(t=t, gyr=np.stack([cols[c] for c in COLS_GYR], axis=1),
@@ -229,6 +230,41 @@ def _read_recording_csv(path: str, progress=None) -> Recording:
     _check_quaternions(path, rec.quat_ref, lambda k: f"line {lines[k]}")
     rec.lines = lines
     return rec
+
+
+def _meta_from_comments(comments) -> Dict[str, object]:
+    """'# key: value' lines -> metadata; '# episode: KIND START_S STOP_S' lines (one per
+    disturbance episode) -> meta['episodes'], a JSON list as in HDF5 files."""
+    meta: Dict[str, object] = {}
+    episodes = []
+    for key, value in comments:
+        if key == "episode":
+            parts = value.split()
+            try:
+                episodes.append([parts[0], float(parts[1]), float(parts[2])])
+            except (IndexError, ValueError):
+                continue   # a comment is not data: one that does not parse is left alone
+        else:
+            meta[key] = value
+    if episodes:
+        meta["episodes"] = json.dumps(episodes)
+    return meta
+
+
+def _comment_lines(meta: Dict[str, object]) -> List[str]:
+    """The '# ...' lines write_recording_csv puts before the header."""
+    out = []
+    rest = dict(meta)
+    raw = rest.pop("episodes", None)
+    for key, value in comment_lines(rest):
+        out.append(f"# {key}: {value}")
+    if raw is not None:
+        try:
+            items = json.loads(raw) if isinstance(raw, (str, bytes)) else raw
+            out += [f"# episode: {k} {float(a)!r} {float(b)!r}" for k, a, b in items]
+        except (TypeError, ValueError):
+            pass
+    return out
 
 
 def _h5():
@@ -424,8 +460,8 @@ def write_recording_csv(path: str, rec: Recording,
         blocks.append(rec.movement.astype(np.float64)[:, None])
     data = np.concatenate(blocks, axis=1)
     with atomic_path(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as fh:
-        for key, value in comment_lines(rec.meta):
-            fh.write(f"# {key}: {value}\n")
+        for line in _comment_lines(rec.meta):
+            fh.write(line + "\n")
         fh.write(",".join(header) + "\n")
         for k, row in enumerate(data):
             if progress is not None and k % PROGRESS_ROWS == PROGRESS_ROWS - 1:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -42,7 +44,21 @@ def test_csv_round_trip(tmp_path, sim_recording):
     lines = open(path).read().splitlines()
     first = int(back.where(0).split()[1])
     assert lines[first - 2].startswith("t_s,") and float(lines[first - 1].split(",")[0]) == rec.t[0]
-    assert back.meta["generator"] == "attekf sim" and "episodes" in back.meta
+    assert back.meta["generator"] == "attekf sim" and "gyro_bias_rad_s" in back.meta
+
+
+def test_metadata_lines_stay_short(tmp_path):
+    """Many episodes, long settings: every comment line fits the firmware reader's line."""
+    from attekf.csvtext import COMMENT_MAX
+    from attekf.evaluate import recording_episodes
+    from attekf.sim import SimConfig, simulate
+    rec = simulate(SimConfig(duration_s=400.0, rate_hz=10.0, lin_acc_m_s2=2.0, mag_disturbance_uT=20.0,
+                             disturbance_every_s=5.0))
+    path = str(tmp_path / "many.csv")
+    write_recording(path, rec)
+    comments = [ln for ln in open(path).read().splitlines() if ln.startswith("#")]
+    assert len(comments) > 100 and max(len(ln) for ln in comments) <= COMMENT_MAX
+    assert len(recording_episodes(read_recording(path))) == len(json.loads(rec.meta["episodes"]))
 
 
 def test_hdf5_round_trip_broad_layout(tmp_path, sim_recording):

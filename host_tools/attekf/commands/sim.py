@@ -20,7 +20,7 @@ separated by static phases; gyro noise and constant bias, accelerometer and magn
 noise; optional linear-acceleration and magnetic-disturbance episodes. The truth is exact
 (closed form). The output format follows the extension: .csv (docs/host_tools.md) or
 .hdf5/.h5 (BROAD layout). Same arguments and --seed give the same file. The disturbance
-episodes are printed and stored in the file (CSV: '# episodes: ...' comment line; HDF5:
+episodes are printed and stored in the file (CSV: '# episode: KIND START_S STOP_S' lines; HDF5:
 attribute 'episodes'), and `attekf eval` shades them in its plots.
 
 examples:
