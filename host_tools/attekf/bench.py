@@ -42,7 +42,7 @@ from .io import Recording, read_recording
 REPO_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 # The BROAD trials: $ATTEKF_BROAD_DIR, else ../shared/data/broad next to this source tree
 # (docs/accuracy.md); DEFAULT_DATA_TEXT is how help and docs name it.
-DEFAULT_DATA_TEXT = "../shared/data/broad (next to the repository) or $ATTEKF_BROAD_DIR"
+DEFAULT_DATA_TEXT = "$ATTEKF_BROAD_DIR, else ../shared/data/broad next to the repository"
 DEFAULT_DATA = os.environ.get("ATTEKF_BROAD_DIR") or os.path.normpath(
     os.path.join(REPO_ROOT, "..", "shared", "data", "broad"))
 SCHEMA_VERSION = 1

@@ -154,8 +154,8 @@ def _check_ours_settings(methods, cfg) -> list:
             try:
                 native._make_settings(native.load(cfg.scalar), merged)
             except native.SettingsError as exc:
-                if m.key.split(":")[-1] not in ablations:
-                    raise                       # the user's own --variant: an error
+                if m.key.split(":")[-1] not in ablations:   # the user's own --variant: an error
+                    raise native.SettingsError(f"--variant {m.key.split(':', 1)[-1]}: {exc}") from None
                 print(f"note: {m.key} skipped: {exc}", file=sys.stderr)
                 continue
         kept.append(m)
