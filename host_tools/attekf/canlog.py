@@ -170,6 +170,20 @@ def _candump(path: str, st: LogStats) -> Iterator[Frame]:
         yield t, fid, data, ext
 
 
+def _data_frame(m, st: LogStats) -> Optional[Frame]:
+    """A python-can Message as a Frame, or None (counted in st) for error, remote and CAN FD
+    frames."""
+    if m.is_error_frame:
+        st.error_frames += 1
+    elif m.is_remote_frame:
+        st.remote_frames += 1
+    elif m.is_fd or len(m.data) > 8:
+        st.fd_frames += 1
+    else:
+        return float(m.timestamp), int(m.arbitration_id), bytes(m.data), bool(m.is_extended_id)
+    return None
+
+
 # ---------------------------------------------------------------------------------------------
 # ASC
 # ---------------------------------------------------------------------------------------------
@@ -206,14 +220,9 @@ def _asc(path: str, st: LogStats) -> Iterator[Frame]:
     src = _Lines(lines)
     try:
         for m in ASCReader(src):
-            if m.is_error_frame:
-                st.error_frames += 1
-            elif m.is_remote_frame:
-                st.remote_frames += 1
-            elif m.is_fd or len(m.data) > 8:
-                st.fd_frames += 1
-            else:
-                yield float(m.timestamp), int(m.arbitration_id), bytes(m.data), bool(m.is_extended_id)
+            frame = _data_frame(m, st)
+            if frame is not None:
+                yield frame
     except InputError:
         raise
     except Exception as exc:  # python-can's parser raises ValueError, IndexError, KeyError ...
@@ -287,14 +296,9 @@ def _blf(path: str, st: LogStats) -> Iterator[Frame]:
                                  f"bytes, its header says {usize}")
             try:
                 for m in reader._parse_container(payload):
-                    if m.is_error_frame:
-                        st.error_frames += 1
-                    elif m.is_remote_frame:
-                        st.remote_frames += 1
-                    elif m.is_fd or len(m.data) > 8:
-                        st.fd_frames += 1
-                    else:
-                        yield float(m.timestamp), int(m.arbitration_id), bytes(m.data), bool(m.is_extended_id)
+                    frame = _data_frame(m, st)
+                    if frame is not None:
+                        yield frame
             except (B.BLFParseError, struct.error, ValueError, OverflowError) as exc:
                 raise InputError(f"{path}: corrupt in the container at byte {pos}: "
                                  f"{exc or type(exc).__name__}") from None

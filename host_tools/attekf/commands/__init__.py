@@ -8,7 +8,9 @@ from __future__ import annotations
 
 import math
 import os
+import signal
 import sys
+import threading
 from typing import Callable, Dict, Iterable, Tuple
 
 from ..errors import AttekfError, Interrupted, UsageError
@@ -86,49 +88,34 @@ def run_guarded(fail, body):
         return fail(" ".join(str(exc).split()))
 
 
+def set_signal(sig, handler):
+    """signal.signal in the main thread (where Python delivers signals); elsewhere (a command
+    run from a thread, as the tests do) nothing, returning None."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.signal(sig, handler)
+
+
 # ---------------------------------------------------------------------------------------------
 # Argument types (argparse reports their ValueError as "invalid <name> value")
 # ---------------------------------------------------------------------------------------------
-def finite_float(text: str) -> float:
-    v = float(text)
-    if not math.isfinite(v):
-        raise ValueError(text)
-    return v
+def _checked(convert, ok, name: str):
+    """An argparse type: convert(text), refused (ValueError) unless ok(value). argparse
+    names `name` in its message: "invalid number > 0 value: '0'"."""
+    def parse(text: str):
+        v = convert(text)
+        if not ok(v):
+            raise ValueError(text)
+        return v
+    parse.__name__ = name
+    return parse
 
 
-def nonneg_float(text: str) -> float:
-    v = finite_float(text)
-    if v < 0:
-        raise ValueError(text)
-    return v
-
-
-def positive_float(text: str) -> float:
-    v = finite_float(text)
-    if not v > 0:
-        raise ValueError(text)
-    return v
-
-
-def nonneg_int(text: str) -> int:
-    v = int(text)
-    if v < 0:
-        raise ValueError(text)
-    return v
-
-
-def positive_int(text: str) -> int:
-    v = int(text)
-    if v < 1:
-        raise ValueError(text)
-    return v
-
-
-finite_float.__name__ = "number"
-nonneg_float.__name__ = "number >= 0"
-positive_float.__name__ = "number > 0"
-nonneg_int.__name__ = "integer >= 0"
-positive_int.__name__ = "integer >= 1"
+finite_float = _checked(float, math.isfinite, "number")
+nonneg_float = _checked(float, lambda v: math.isfinite(v) and v >= 0, "number >= 0")
+positive_float = _checked(float, lambda v: math.isfinite(v) and v > 0, "number > 0")
+nonneg_int = _checked(int, lambda v: v >= 0, "integer >= 0")
+positive_int = _checked(int, lambda v: v >= 1, "integer >= 1")
 
 
 def parse_pair(item: str, what: str) -> Tuple[str, float]:

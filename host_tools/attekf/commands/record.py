@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import signal
-import threading
 import socket
 import sys
 import time
@@ -13,7 +12,7 @@ from typing import Dict, List, Optional
 
 import numpy as np
 
-from . import nonneg_float, nonneg_int
+from . import set_signal as _set_signal, nonneg_float, nonneg_int
 from ..errors import Interrupted, UsageError
 
 NAME = "record"
@@ -51,14 +50,6 @@ examples:
 """
 
 SO_RCVBUFFORCE = getattr(socket, "SO_RCVBUFFORCE", 33)
-
-
-def _set_signal(sig, handler):
-    """signal.signal in the main thread (where Python delivers signals); elsewhere (the command
-    run from a thread, as the tests do) nothing, returning None."""
-    if threading.current_thread() is not threading.main_thread():
-        return None
-    return signal.signal(sig, handler)
 
 
 def add_arguments(p) -> None:

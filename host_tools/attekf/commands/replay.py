@@ -6,7 +6,6 @@ import errno
 import json
 import os
 import signal
-import threading
 import sys
 import time
 from dataclasses import dataclass, field
@@ -14,7 +13,7 @@ from typing import Dict, Iterator, List, Optional, Tuple
 
 import numpy as np
 
-from . import finite_float, nonneg_float, nonneg_int, positive_float
+from . import set_signal as _set_signal, finite_float, nonneg_float, nonneg_int, positive_float
 from ..canlog import LOG_EXTS, check_log_name, read_frames
 from ..errors import DeviceError, InputError, Interrupted, UsageError
 
@@ -74,14 +73,6 @@ class Frames:
 
     def __len__(self) -> int:
         return len(self.data)
-
-
-def _set_signal(sig, handler):
-    """signal.signal in the main thread (where Python delivers signals); elsewhere (the command
-    run from a thread, as the tests do) nothing, returning None."""
-    if threading.current_thread() is not threading.main_thread():
-        return None
-    return signal.signal(sig, handler)
 
 
 def add_arguments(p) -> None:
