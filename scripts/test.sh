@@ -37,6 +37,8 @@ step() {
 }
 
 step "ctest (build/host)" ctest --test-dir "$ROOT/build/host" --output-on-failure --no-tests=error -j"$JOBS"
+# ctest lists skipped tests without their reason; tests/RunTest.cmake logged it
+grep -h "^ATTEKF-SKIP:" "$ROOT/build/host/Testing/Temporary/LastTest.log" 2>/dev/null | sed 's/^/[test] ctest /'
 step "Cortex-M builds under QEMU (scripts/test_target.sh)" "$ROOT/scripts/test_target.sh"
 step "pytest" "$ROOT/.venv/bin/python" -m pytest "$ROOT/tests/python" -q -ra
 
