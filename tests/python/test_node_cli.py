@@ -105,7 +105,9 @@ def test_replay_outputs_follow_the_sample_clock(replayed):
 
 def test_replay_estimate_tracks_the_truth(replayed):
     """Sanity of the whole path (quantisation included): the node's attitude after the initial
-    rest is close to the simulator's truth. Accuracy itself is the estimator's tests' job."""
+    rest is close to the simulator's truth. Accuracy itself is the estimator's tests' job.
+    Median error measured at 186aab8: 2.38 deg (6 s from a start aligned on the first
+    samples); bound 3x. Depends on the filter's tuning."""
     from attekf.metrics import error_quat_earth, euler_to_quat, total_error
     import can
     rec, d, _st, _ = replayed
@@ -116,7 +118,7 @@ def test_replay_estimate_tracks_the_truth(replayed):
     seq = np.array([r.seq for r in rows])
     q = euler_to_quat(np.array([r.euler for r in rows]))
     err = np.degrees(total_error(error_quat_earth(q, rec.quat_ref[seq])))
-    assert np.median(err) < 20.0
+    assert np.median(err) < 7.0, np.median(err)
 
 
 def test_replay_logs_events_at_info(replayed):
