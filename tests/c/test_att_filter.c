@@ -357,9 +357,9 @@ static void test_align_respects_variance_floor(void)
  * the clamped readings flagged ATT_GYRO_SATURATED the rate variances are raised, the
  * attitude uncertainty grows with the unmeasured rotation, and the accelerometer and
  * magnetometer take the attitude back within seconds afterwards. (With the gyro merely
- * left out instead, this test measures 11.1 deg 3 s after and 5.3 deg 5 s after, and
- * fails; the soak's tumbles came out 100-180 deg off with a heading sigma of 2-3 deg:
- * docs/reliability.md, Finding 6.) */
+ * left out, this test measures 11.1 deg 3 s after and 5.3 deg 5 s after, and fails: the
+ * attitude then drifts with an uncertainty that does not grow, so the sensors are gated
+ * out; the soak's tumbles end 100-180 deg off that way, docs/reliability.md, Finding 6.) */
 static void test_gyro_saturation_tumble_recovers(void)
 {
     static const double zero[3] = {0.0, 0.0, 0.0};
