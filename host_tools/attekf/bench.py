@@ -55,7 +55,10 @@ import numpy as np
 from . import metrics as M
 from .io import Recording, read_recording
 
-DEFAULT_DATA = os.environ.get("ATTEKF_BROAD_DIR", "/work/shared/data/broad")
+# The BROAD recordings live beside the repository (../shared/data/broad), never inside it.
+DEFAULT_DATA = os.environ.get("ATTEKF_BROAD_DIR", os.path.join(
+    os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))),
+    "shared", "data", "broad"))
 GRAVITY = 9.81
 SCHEMA_VERSION = 1
 M_KEYS = ("total", "heading", "inclination")
