@@ -5,6 +5,9 @@
 # as errors, then checks the objects for hidden double precision: a float build must not
 # reference the soft-double helpers (__aeabi_d*) or double libm functions (sin, cos, ...).
 include("${CMAKE_CURRENT_LIST_DIR}/Warnings.cmake")
+if(NOT SOURCES)
+  message(FATAL_ERROR "cortex-m4f: no source files given (-DSOURCES): nothing would be checked")
+endif()
 set(flags -std=c99 -Os -mcpu=cortex-m4 -mthumb -mfpu=fpv4-sp-d16 -mfloat-abi=hard
           -ffunction-sections -fdata-sections -DEKF_SCALAR_FLOAT=1 ${ATTEKF_WARNINGS})
 foreach(inc ${INCLUDES})

@@ -15,7 +15,9 @@
 # Each target starts from its committed seeds (tests/fuzz/corpus/<target>) plus what earlier
 # runs found (build/fuzz/corpus/<target>, not committed). A crash, an invariant failure or
 # a sanitizer report fails the script and leaves the input in build/fuzz/artifacts/<target>/;
-# reproduce with: build/fuzz/<target> <that file>.
+# reproduce with: build/fuzz/<target> <that file>. A target that ran no input fails too.
+# Without clang, libFuzzer (libclang-rt) or atheris: fails under CI=true, else skipped (exit 77,
+# scripts/prereq.sh).
 set -uo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
@@ -29,13 +31,25 @@ while (($#)); do
     --targets) TARGETS="$2"; shift 2 ;;
     --jobs) WORKERS="$2"; shift 2 ;;
     --seed) SEED="$2"; shift 2 ;;
-    -h|--help) sed -n '2,19p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,20p' "$0"; exit 0 ;;
     *) echo "fuzz.sh: unknown option '$1' (see --help)" >&2; exit 2 ;;
   esac
 done
 OUT="$ROOT/build/fuzz"
 log() { printf '[fuzz] %s\n' "$*"; }
-command -v clang >/dev/null || { echo "[fuzz] clang not installed (scripts/setup.sh installs it)" >&2; exit 1; }
+# shellcheck source=scripts/prereq.sh
+. "$ROOT/scripts/prereq.sh"
+attekf_require fuzz clang
+mkdir -p "$OUT"
+# libFuzzer is clang's runtime package (libclang-rt-*-dev), separate from clang itself.
+printf 'int LLVMFuzzerTestOneInput(const unsigned char *d, unsigned long n) { (void)d; (void)n; return 0; }\n' \
+  > "$OUT/probe.c"
+clang -fsanitize=fuzzer "$OUT/probe.c" -o "$OUT/probe" >"$OUT/probe.log" 2>&1 \
+  || attekf_missing fuzz "libFuzzer (clang -fsanitize=fuzzer) cannot link: $(tail -n 1 "$OUT/probe.log")"
+case " $TARGETS " in
+  *" fuzz_parsers "*)
+    "$ROOT/.venv/bin/python" -c "import atheris" 2>/dev/null || attekf_missing fuzz "atheris (Python) not installed" ;;
+esac
 
 c_targets=()
 for t in $TARGETS; do [ "$t" = fuzz_parsers ] || c_targets+=("$t"); done
@@ -71,7 +85,10 @@ for i in "${!pids[@]}"; do
   execs="$(grep -Eo 'stat::number_of_executed_units: [0-9]+' "$OUT/$t.log" | awk '{s += $2} END {print s + 0}')"
   if [ "$execs" = 0 ]; then execs="$(grep -Eo '^Done [0-9]+ runs' "$OUT/$t.log" | awk '{s += $2} END {print s + 0}')"; fi
   cov="$(grep -Eo 'cov: [0-9]+' "$OUT/$t.log" | tail -1)"
-  if [ "$rc" -ne 0 ]; then
+  if [ "$rc" -eq 0 ] && [ "$execs" = 0 ]; then
+    status=1
+    log "$t: FAILED: no input was executed; log $OUT/$t.log"
+  elif [ "$rc" -ne 0 ]; then
     status=1
     log "$t: FAILED (exit $rc) after $execs executions; log $OUT/$t.log, input in $OUT/artifacts/$t/"
     grep -E "invariant failed|runtime error|ERROR: |Uncaught Python exception|Error|error" "$OUT/$t.log" | head -5 >&2

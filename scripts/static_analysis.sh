@@ -16,19 +16,23 @@ OUT="${1:-$ROOT/build/static}"
 JOBS="$(nproc)"
 log() { printf '[static] %s\n' "$*"; }
 
-for tool in cppcheck run-clang-tidy clang-tidy; do
-  command -v "$tool" >/dev/null || { echo "[static] $tool not installed (scripts/setup.sh installs it)" >&2; exit 1; }
-done
+# shellcheck source=scripts/prereq.sh
+. "$ROOT/scripts/prereq.sh"
+attekf_require static cppcheck run-clang-tidy clang-tidy
 
 PY="$ROOT/.venv/bin/python"; [ -x "$PY" ] || PY=python3
 cmake -S "$ROOT" -B "$OUT" -G Ninja -DCMAKE_EXPORT_COMPILE_COMMANDS=ON -DATTEKF_BUILD_TESTS=OFF \
       -DPython3_EXECUTABLE="$PY" >/dev/null 2>&1 || { echo "[static] configure failed" >&2; exit 1; }
 mkdir -p "$OUT/db" "$OUT/cppcheck-cache"
-python3 - "$OUT/compile_commands.json" "$OUT/db/compile_commands.json" "$ROOT" <<'PYEOF'
+# The filter fails (and with it the script) on an unreadable database or one without any
+# firmware/ or hal/ source: an empty list would make both analysers pass having read nothing.
+python3 - "$OUT/compile_commands.json" "$OUT/db/compile_commands.json" "$ROOT" <<'PYEOF' || { echo "[static] compile database filter failed" >&2; exit 1; }
 import json, sys
 src, dst, root = sys.argv[1:4]
 keep = [e for e in json.load(open(src))
         if e["file"].startswith((root + "/firmware/", root + "/hal/"))]
+if not keep:
+    sys.exit(f"[static] {src}: no firmware/ or hal/ source in the compile database")
 json.dump(keep, open(dst, "w"), indent=1)
 # clang-tidy: each file once (the float build where there is one: what ships); its
 # analysis is slow, and the scalar builds differ only in ekf_scalar.h's inline functions.
@@ -62,10 +66,21 @@ fi
 log "cppcheck done in $((SECONDS - t0)) s"
 
 t0=$SECONDS
-log "clang-tidy $(clang-tidy --version | sed -n 's/.*version \([0-9.]*\).*/\1/p' | head -1) ($(grep -c '"file"' "$OUT/db/tidy/compile_commands.json") files)"
+tidy_files="$(grep -c '"file"' "$OUT/db/tidy/compile_commands.json")"
+if [ "${tidy_files:-0}" -eq 0 ]; then
+  echo "[static] $OUT/db/tidy/compile_commands.json lists no file: clang-tidy would check nothing" >&2
+  exit 1
+fi
+log "clang-tidy $(clang-tidy --version | sed -n 's/.*version \([0-9.]*\).*/\1/p' | head -1) ($tidy_files files)"
 if ! run-clang-tidy -p "$OUT/db/tidy" -j"$JOBS" -quiet "$ROOT/(firmware|hal)/" > "$OUT/clang-tidy.log" 2>&1; then
   grep -E "(warning|error):" "$OUT/clang-tidy.log" | sort -u >&2
   echo "[static] clang-tidy reported findings (full log: $OUT/clang-tidy.log)" >&2
+  status=1
+fi
+# run-clang-tidy logs one command line per file it ran on: all of the database, or a failure.
+checked="$(grep -c -- ' -quiet ' "$OUT/clang-tidy.log")"
+if [ "${checked:-0}" -ne "$tidy_files" ]; then
+  echo "[static] clang-tidy ran on ${checked:-0} of $tidy_files files (log: $OUT/clang-tidy.log)" >&2
   status=1
 fi
 log "clang-tidy done in $((SECONDS - t0)) s"

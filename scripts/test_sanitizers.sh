@@ -18,7 +18,7 @@ echo "[asan] built in $((SECONDS - t0)) s"
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:strict_string_checks=1:detect_stack_use_after_return=1"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 t0=$SECONDS
-ctest --test-dir "$OUT" --output-on-failure -j"$JOBS" -LE "codegen|cross"
+ctest --test-dir "$OUT" --output-on-failure --no-tests=error -j"$JOBS" -LE "codegen|cross"
 rc=$?
 echo "[asan] ctest in $((SECONDS - t0)) s: $([ $rc -eq 0 ] && echo 'no sanitizer findings, all passed' || echo FAILED)"
 exit $rc

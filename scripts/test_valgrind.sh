@@ -5,7 +5,9 @@
 #      dropped, duplicated, swapped, wrong length, unknown ids, a 3 s pause of the bus
 #      (input stale, heartbeats);
 #   2. live mode on an interface that does not exist (open failure path, clean exit).
-# Fails on any memcheck error or definite/indirect leak (--error-exitcode=99).
+# Fails on any memcheck error or definite/indirect leak (--error-exitcode=99), on any other
+# exit status than the expected one (replay 0, live mode 1) and on a missing statistics file.
+# Without valgrind: fails under CI=true, else skipped (exit 77, scripts/prereq.sh).
 #
 #   ./scripts/test_valgrind.sh [BUILD_DIR]    default build/host (scripts/setup.sh builds it)
 set -uo pipefail
@@ -13,7 +15,9 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 BUILD="${1:-$ROOT/build/host}"
 NODE="$BUILD/firmware/app/attekf-node"
 PY="$ROOT/.venv/bin/python"
-command -v valgrind >/dev/null || { echo "[valgrind] valgrind not installed (scripts/setup.sh installs it)" >&2; exit 1; }
+# shellcheck source=scripts/prereq.sh
+. "$ROOT/scripts/prereq.sh"
+attekf_require valgrind valgrind
 [ -x "$NODE" ] || { echo "[valgrind] $NODE missing: build first" >&2; exit 1; }
 WORK="$(mktemp -d "${TMPDIR:-/tmp}/attekf-valgrind.XXXXXX")"
 trap 'rm -rf "$WORK"' EXIT
@@ -23,7 +27,7 @@ VG=(valgrind --tool=memcheck --error-exitcode=99 --leak-check=full --show-leak-k
 "$PY" -m attekf sim -q "$WORK/rec.csv" --duration 20 --rate 200 --seed 5 --lin-acc 3 \
       --mag-disturbance 30 || exit 1
 "$PY" -m attekf replay -q "$WORK/rec.csv" --to-log "$WORK/clean.log" || exit 1
-"$PY" - "$WORK/clean.log" "$WORK/faulty.log" <<'PYEOF'
+"$PY" - "$WORK/clean.log" "$WORK/faulty.log" <<'PYEOF' || { echo "[valgrind] fault injection failed" >&2; exit 1; }
 import random, sys
 src, dst = sys.argv[1:3]
 lines = open(src).read().splitlines()
@@ -60,9 +64,13 @@ rc=$?
 if [ $rc -ne 0 ]; then echo "[valgrind] replay: exit $rc" >&2; status=1; fi
 "${VG[@]}" "$NODE" --interface attekf-none0 --duration 1 -l error 2>"$WORK/live.err"
 rc=$?
-if [ $rc -eq 99 ] || [ $rc -gt 2 ]; then cat "$WORK/live.err" >&2; echo "[valgrind] live mode: exit $rc" >&2; status=1; fi
-outputs="$(wc -l < "$WORK/out.log")"
-"$PY" -c "import json,sys; c=json.load(open(sys.argv[1])).get(\"counters\",{}); print(\"[valgrind] node counters:\", \", \".join(f\"{k} {v}\" for k,v in c.items() if v))" "$WORK/stats.json" || true
+# the interface does not exist: the node must say so and exit 1 (99: a memcheck error)
+if [ $rc -ne 1 ] || ! grep -q "cannot open CAN interface" "$WORK/live.err"; then
+  cat "$WORK/live.err" >&2; echo "[valgrind] live mode: exit $rc, expected 1 with 'cannot open CAN interface'" >&2; status=1
+fi
+outputs="$(wc -l < "$WORK/out.log")" || status=1
+"$PY" -c "import json,sys; c=json.load(open(sys.argv[1]))[\"counters\"]; print(\"[valgrind] node counters:\", \", \".join(f\"{k} {v}\" for k,v in c.items() if v))" "$WORK/stats.json" \
+  || { echo "[valgrind] replay: no readable counters in $WORK/stats.json" >&2; status=1; }
 echo "[valgrind] attekf-node replay ($(wc -l < "$WORK/faulty.log") frames in, $outputs out) and live-mode start:" \
      "$([ $status -eq 0 ] && echo 'no memcheck errors, no leaks' || echo FAILED)"
 exit $status

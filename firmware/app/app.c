@@ -104,6 +104,7 @@ static void publish(app_t *a, hal_output_kind_t kind)
                           (kind == HAL_OUT_HEARTBEAT ? HAL_FLAG_HEARTBEAT : 0u));
     memset(o->counters, 0, sizeof(o->counters));
     hal_get_counters(a->hal, o->counters);
+    hal_count_n(&o->counters[HAL_CNT_LATE], a->counters[HAL_CNT_LATE]); /* late samples */
     for (i = HAL_CNT_LINK_END; i < HAL_CNT_COUNT; ++i) {
         o->counters[i] = a->counters[i];
     }
@@ -138,6 +139,39 @@ static void latch_link_events(app_t *a, const uint32_t before[HAL_CNT_COUNT],
     }
 }
 
+/* A sample that does not continue the stream (dseq: its sequence step from the last accepted
+ * sample). It is a stale or corrupted frame, or one of the first samples of a restarted
+ * sender; only APP_RESTART_CONFIRM of them in a row that continue each other tell the two
+ * apart. Returns 1 when this one completes such a run (the caller restarts on it); else
+ * counts it, late if it is from the past (sequence outside the window, time not after the
+ * last sample's), a time error otherwise, and returns 0: drop it. */
+static int confirms_restart(app_t *a, const hal_sample_t *s, uint16_t dseq)
+{
+    const app_settings_t *cfg = &a->settings;
+    const uint16_t dc = (uint16_t)(s->seq - a->restart_seq);
+    if (a->restart_n > 0u && dc != 0u && dc <= cfg->seq_window && s->t_us > a->restart_t_us &&
+        s->t_us - a->restart_t_us <= cfg->max_gap_us) {
+        ++a->restart_n;
+    } else {
+        a->restart_n = 1u;
+    }
+    a->restart_seq = s->seq;
+    a->restart_t_us = s->t_us;
+    if (a->restart_n >= APP_RESTART_CONFIRM) {
+        return 1;
+    }
+    if (dseq != 0u && dseq > cfg->seq_window && s->t_us <= a->last_t_us) {
+        hal_count(&a->counters[HAL_CNT_LATE]);
+        a->latched |= HAL_FLAG_FRAME_ERROR;
+        hal_report(a->hal, HAL_LOG_WARN, HAL_EV_LATE, (int32_t)s->seq);
+    } else {
+        hal_count(&a->counters[HAL_CNT_TIME_ERRORS]);
+        a->latched |= HAL_FLAG_TIME_ERROR;
+        hal_report(a->hal, HAL_LOG_WARN, HAL_EV_TIME_ERROR, (int32_t)s->seq);
+    }
+    return 0;
+}
+
 static int is_rejection(ekf_status_t st)
 {
     /* Gated / skipped are filter decisions, not bad input; "not initialised" is a sample
@@ -170,19 +204,11 @@ static void process(app_t *a, const hal_sample_t *s)
 
     if (a->have_sample) {
         const uint16_t dseq = (uint16_t)(s->seq - a->last_seq);
-        if (dseq == 0u || (dseq <= cfg->seq_window && s->t_us <= a->last_t_us)) {
-            hal_count(&a->counters[HAL_CNT_TIME_ERRORS]);
-            a->latched |= HAL_FLAG_TIME_ERROR;
-            hal_report(hal, HAL_LOG_WARN, HAL_EV_TIME_ERROR, (int32_t)s->seq);
-            if (++a->time_errors_in_row < APP_TIME_ERRORS_RESYNC) {
+        if (dseq == 0u || dseq > cfg->seq_window || s->t_us <= a->last_t_us) {
+            if (!confirms_restart(a, s, dseq)) {
                 return; /* dropped; the next good sample sees it as a gap */
             }
-            /* Several in a row: the sender's clock restarted. Follow it. */
-            hal_count(&a->counters[HAL_CNT_RESYNC]);
-            a->latched |= HAL_FLAG_RESTARTED;
-            hal_report(hal, HAL_LOG_WARN, HAL_EV_RESYNC, (int32_t)s->seq);
-            restart_filter(a);
-        } else if (dseq > cfg->seq_window) {
+            /* APP_RESTART_CONFIRM consistent samples: the sender restarted. Follow it. */
             hal_count(&a->counters[HAL_CNT_RESYNC]);
             a->latched |= HAL_FLAG_RESTARTED;
             hal_report(hal, HAL_LOG_WARN, HAL_EV_RESYNC, (int32_t)s->seq);
@@ -204,7 +230,7 @@ static void process(app_t *a, const hal_sample_t *s)
             }
         }
     }
-    a->time_errors_in_row = 0u;
+    a->restart_n = 0u;
     if (!a->have_sample) {
         a->next_out_t_us = s->t_us; /* new sample clock: output at once */
         dt_us = 0u;
@@ -305,6 +331,7 @@ void app_get_counters(const app_t *app, uint32_t counters[HAL_CNT_COUNT])
     int i;
     memset(counters, 0, sizeof(uint32_t) * (size_t)HAL_CNT_COUNT);
     hal_get_counters(app->hal, counters);
+    hal_count_n(&counters[HAL_CNT_LATE], app->counters[HAL_CNT_LATE]); /* late samples */
     for (i = HAL_CNT_LINK_END; i < HAL_CNT_COUNT; ++i) {
         counters[i] = app->counters[i];
     }

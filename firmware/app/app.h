@@ -18,11 +18,14 @@
  *   - a sequence gap (seq advanced by 2..seq_window) is predicted across with the measured
  *     time difference, counted (HAL_CNT_GAPS, HAL_CNT_MISSING) and flagged (HAL_FLAG_GAP);
  *     steps longer than the filter's dt_max are split into several predictions.
- *   - a time gap above max_gap_us, or a sequence jump outside the window (sensor restart),
- *     restarts the filter (re-alignment): HAL_CNT_REALIGN / HAL_CNT_RESYNC, HAL_FLAG_RESTARTED.
- *   - a sample whose time is not after the previous one is dropped (HAL_CNT_TIME_ERRORS);
- *     after APP_TIME_ERRORS_RESYNC such samples in a row the sender's clock is taken to
- *     have restarted (resync).
+ *   - a time gap above max_gap_us with the sequence continuing (the sensor paused) restarts
+ *     the filter (re-alignment): HAL_CNT_REALIGN, HAL_FLAG_RESTARTED.
+ *   - a sample that does not continue the stream (sequence outside the window, or time not
+ *     after the previous sample's) is dropped: HAL_CNT_LATE if it is from the past (sequence
+ *     outside the window, time not after: a stale frame), else HAL_CNT_TIME_ERRORS. Only
+ *     APP_RESTART_CONFIRM such samples in a row that continue each other are taken as a
+ *     restarted sender: the filter restarts on the last of them (HAL_CNT_RESYNC,
+ *     HAL_FLAG_RESTARTED).
  *   - a saturated sensor is not fused for that sample (HAL_CNT_SATURATED).
  *   - no sample for stale_timeout_us on the local clock: HAL_FLAG_STALE, and a heartbeat
  *     output (status only) every heartbeat period until samples come back.
@@ -37,8 +40,13 @@
 #include "att.h"
 #include "hal.h"
 
-/* Consecutive time errors after which the sender's clock is taken to have restarted. */
-#define APP_TIME_ERRORS_RESYNC 3u
+/* Consecutive samples that continue each other but not the stream (consecutive sequence
+ * numbers within seq_window, increasing times within max_gap_us) after which the sender is
+ * taken to have restarted. A stale or corrupted frame yields one such sample (the CAN
+ * assembly hands on a frame more than 64 samples old as a sample of its own): never a restart.
+ * Each further sample delays a real restart by one sample period (20 ms at 100 Hz for 3),
+ * small next to the re-alignment that follows (align_samples, 10 by default). */
+#define APP_RESTART_CONFIRM 3u
 
 typedef struct {
     uint32_t output_period_us; /* attitude output period on the sample clock, us; 0 = every
@@ -60,18 +68,21 @@ typedef struct {
     att_settings_t att_settings;      /* kept for restarts (re-alignment) */
     att_ekf_t ekf;
     const hal_t *hal;
-    uint32_t counters[HAL_CNT_COUNT]; /* application-level entries (link ones unused) */
+    uint32_t counters[HAL_CNT_COUNT]; /* application-level entries, and late samples (added
+                                         to the backend's late frames) */
     hal_output_t out;                 /* the last output; heartbeats repeat its estimate */
     uint64_t last_t_us;               /* sample time of the last accepted sample, us */
     uint64_t last_local_us;           /* local time of the last sample (or of app_init), us */
     uint64_t next_out_t_us;           /* sample time at which the next output is due, us */
     uint64_t next_heartbeat_us;       /* local time of the next heartbeat while stale, us */
+    uint64_t restart_t_us;            /* sample time of the last off-stream sample, us */
     uint16_t last_seq;
     uint16_t latched;                 /* HAL_FLAG_* events since the last output */
     uint16_t out_index;
+    uint16_t restart_seq;             /* seq of the last off-stream sample */
     uint8_t have_sample;              /* a sample was accepted since start or restart */
     uint8_t stale;
-    uint8_t time_errors_in_row;
+    uint8_t restart_n;                /* off-stream samples in a row that continue each other */
     uint8_t was_aligned;
 } app_t;
 

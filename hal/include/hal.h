@@ -79,7 +79,8 @@ typedef enum {
     HAL_CNT_UNKNOWN_ID,      /* frames with an id that is not an IMU input: ignored */
     HAL_CNT_BAD_DLC,         /* input frames of the wrong length: rejected */
     HAL_CNT_DUPLICATE,       /* frames already received for their sample: dropped */
-    HAL_CNT_LATE,            /* frames for a sample already completed (out of order): dropped */
+    HAL_CNT_LATE,            /* frames for a sample already completed (out of order), and
+                                samples older than the stream's last one: dropped */
     HAL_CNT_INCOMPLETE,      /* samples completed with a declared sensor frame missing */
     HAL_CNT_DISCARDED,       /* samples given up because their time (sync) frame never came */
     HAL_CNT_RX_OVERFLOW,     /* frames lost before reaching us (kernel/driver queue overflow) */
@@ -91,7 +92,8 @@ typedef enum {
     HAL_CNT_GAPS,            /* sequence gaps (one or more samples missing) predicted across */
     HAL_CNT_MISSING,         /* samples missing in those gaps, in total */
     HAL_CNT_STALE,           /* times the input went stale (no sample for stale_timeout) */
-    HAL_CNT_TIME_ERRORS,     /* samples dropped: time not after the previous sample's */
+    HAL_CNT_TIME_ERRORS,     /* samples dropped: time not after the previous sample's, or a
+                                sequence jump not (yet) confirmed as a sensor restart */
     HAL_CNT_RESYNC,          /* sensor restarts: sequence out of window, clock restarted */
     HAL_CNT_SATURATED,       /* samples with a saturated sensor (that sensor not fused) */
     HAL_CNT_EKF_REJECTED,    /* samples the filter refused in part or whole (bad input) */
@@ -169,6 +171,7 @@ typedef enum {
     HAL_EV_REALIGN,        /* detail: gap, ms */
     HAL_EV_EKF_REJECT,     /* detail: ekf_status_t of the first refused stage */
     HAL_EV_SATURATED,      /* detail: HAL_HAS_* bits */
+    HAL_EV_LATE,           /* detail: sample seq (a sample from before the stream's last one) */
     HAL_EV_COUNT
 } hal_event_t;
 

@@ -36,7 +36,7 @@ const char *hal_counter_name(hal_counter_id_t id)
 
 static const char *const event_names[HAL_EV_COUNT] = {
     "started", "link_down", "link_up", "rx_overflow", "tx_error", "aligned", "gap", "stale",
-    "resumed", "time_error", "resync", "realign", "ekf_reject", "saturated",
+    "resumed", "time_error", "resync", "realign", "ekf_reject", "saturated", "late",
 };
 
 const char *hal_event_name(hal_event_t event)

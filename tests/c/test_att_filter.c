@@ -50,7 +50,8 @@ static void align_on(att_ekf_t *f, ts_sim_t *s)
 
 /* ----- convergence ----- */
 
-/* Static body, filter aligned 20 deg away from the truth: converges within 0.5 deg. */
+/* Static body, filter aligned 20 deg away from the truth: converges within 0.4 deg (measured
+ * 0.027-0.135 deg over the five attitudes, float and double). */
 static void test_static_convergence_from_wrong_start(void)
 {
     static const double attitudes[][3] = {
@@ -95,14 +96,15 @@ static void test_static_convergence_from_wrong_start(void)
         err = est_error(&f, &sim);
         printf("static attitude (%.1f, %.1f, %.1f) deg, start %.1f deg off: final error %.3f deg\n",
                attitudes[a][0] / DEG, attitudes[a][1] / DEG, attitudes[a][2] / DEG, err0 / DEG, err / DEG);
-        TEST_ASSERT_TRUE_MESSAGE(err < 0.5 * DEG, "static attitude did not converge within 0.5 deg");
+        TEST_ASSERT_TRUE_MESSAGE(err < 0.4 * DEG, "static attitude did not converge within 0.4 deg");
     }
 }
 
 typedef struct {
     const char *name;
-    double w[3];      /* rad/s, body */
-    double start[3];  /* initial Euler angles, rad */
+    double w[3];         /* rad/s, body */
+    double start[3];     /* initial Euler angles, rad */
+    double measured_deg; /* RMS error measured at 186aab8 (float and double alike), deg */
 } rate_case_t;
 
 static double run_constant_rate(const rate_case_t *c, int use_mag, double *max_err)
@@ -152,27 +154,29 @@ static double run_constant_rate(const rate_case_t *c, int use_mag, double *max_e
 static void test_constant_rate_rotations_tracked(void)
 {
     static const rate_case_t cases[] = {
-        {"yaw spin 1 rad/s, tilted 20 deg", {0.0, 0.342, 0.940}, {0.349, 0.0, 0.0}},
-        {"roll spin 0.5 rad/s (roll wraps)", {0.5, 0.0, 0.0}, {0.0, 0.1, 0.5}},
-        {"axis (1,1,1)/sqrt3 at 0.3 rad/s", {0.1732, 0.1732, 0.1732}, {0.0, 0.0, 0.0}},
-        {"pitch-yaw 0.2/0.6 rad/s", {0.0, 0.2, 0.6}, {0.2, -0.2, 1.0}},
+        {"yaw spin 1 rad/s, tilted 20 deg", {0.0, 0.342, 0.940}, {0.349, 0.0, 0.0}, 0.120},
+        {"roll spin 0.5 rad/s (roll wraps)", {0.5, 0.0, 0.0}, {0.0, 0.1, 0.5}, 0.089},
+        {"axis (1,1,1)/sqrt3 at 0.3 rad/s", {0.1732, 0.1732, 0.1732}, {0.0, 0.0, 0.0}, 0.154},
+        {"pitch-yaw 0.2/0.6 rad/s", {0.0, 0.2, 0.6}, {0.2, -0.2, 1.0}, 0.107},
     };
     size_t i;
     for (i = 0; i < sizeof cases / sizeof cases[0]; ++i) {
         double max_err;
         const double rms = run_constant_rate(&cases[i], 1, &max_err);
-        printf("constant rate, %s: RMS error %.3f deg (max %.3f)\n", cases[i].name, rms / DEG, max_err / DEG);
-        TEST_ASSERT_TRUE_MESSAGE(rms < 2.0 * DEG, "constant-rate rotation not tracked within 2 deg RMS");
+        printf("constant rate, %s: RMS error %.3f deg (max %.3f; bound 3 x %.3f)\n", cases[i].name, rms / DEG,
+               max_err / DEG, cases[i].measured_deg);
+        TEST_ASSERT_TRUE_MESSAGE(rms < 3.0 * cases[i].measured_deg * DEG,
+                                 "constant-rate rotation: RMS error above 3 x the measured one");
     }
 }
 
 static void test_constant_rate_without_magnetometer(void)
 {
-    static const rate_case_t c = {"6D yaw spin", {0.0, 0.342, 0.940}, {0.349, 0.0, 0.0}};
+    static const rate_case_t c = {"6D yaw spin", {0.0, 0.342, 0.940}, {0.349, 0.0, 0.0}, 0.075};
     double max_err;
     const double rms = run_constant_rate(&c, 0, &max_err);
-    printf("constant rate 6D (inclination only): RMS %.3f deg\n", rms / DEG);
-    TEST_ASSERT_TRUE(rms < 2.0 * DEG);
+    printf("constant rate 6D (inclination only): RMS %.3f deg (bound 3 x %.3f)\n", rms / DEG, c.measured_deg);
+    TEST_ASSERT_TRUE(rms < 3.0 * c.measured_deg * DEG);
 }
 
 /* Pitch up through +90 deg (the body goes over the top) and come back to rest: the filter
@@ -210,7 +214,7 @@ static void test_gimbal_lock_pass_and_recovery(void)
     TEST_ASSERT_TRUE(saw_lock);
     TEST_ASSERT_TRUE(att_diag(&f)->remaps >= 1u);
     TEST_ASSERT_FALSE(att_flags(&f) & ATT_FLAG_GIMBAL_LOCK);
-    TEST_ASSERT_TRUE(err < 1.0 * DEG);
+    TEST_ASSERT_TRUE(err < 0.25 * DEG); /* measured 0.077 deg */
 }
 
 /* The remap (phi+pi, pi-theta, psi+pi) is the same rotation. */
@@ -260,7 +264,8 @@ static void test_heading_capped_without_magnetometer(void)
         ts_sim_step(&sim, zero, NULL, &smp);
         (void)att_step(&f, &smp, NULL);
     }
-    TEST_ASSERT_TRUE(est_error(&f, &sim) < 1.0 * DEG);
+    printf("heading capped without magnetometer, then 20 s with it: error %.3f deg\n", est_error(&f, &sim) / DEG);
+    TEST_ASSERT_TRUE(est_error(&f, &sim) < 0.25 * DEG); /* measured 0.070 deg */
 }
 
 static void test_linear_acceleration_and_mag_disturbance_flags(void)
@@ -352,9 +357,9 @@ static void test_align_respects_variance_floor(void)
  * the clamped readings flagged ATT_GYRO_SATURATED the rate variances are raised, the
  * attitude uncertainty grows with the unmeasured rotation, and the accelerometer and
  * magnetometer take the attitude back within seconds afterwards. (With the gyro merely
- * left out instead, this test measures 11.1 deg 3 s after and 5.3 deg 5 s after, and
- * fails; the soak's tumbles came out 100-180 deg off with a heading sigma of 2-3 deg:
- * docs/reliability.md, Finding 6.) */
+ * left out, this test measures 11.1 deg 3 s after and 5.3 deg 5 s after, and fails: the
+ * attitude then drifts with an uncertainty that does not grow, so the sensors are gated
+ * out; the soak's tumbles end 100-180 deg off that way, docs/reliability.md, Finding 6.) */
 static void test_gyro_saturation_tumble_recovers(void)
 {
     static const double zero[3] = {0.0, 0.0, 0.0};

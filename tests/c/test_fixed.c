@@ -168,7 +168,23 @@ static void test_sqrt_error_bound(void)
     ts_rng_seed(&r, 3);
     TEST_ASSERT_TRUE(ekf_sqrt(0) == 0);
     TEST_ASSERT_TRUE(ekf_sqrt(EKF_C(4)) == EKF_C(2));
-    TEST_ASSERT_TRUE(ekf_sqrt(EKF_C(96.2361)) == ekf_sqrt(EKF_C(96.2361))); /* deterministic */
+    TEST_ASSERT_TRUE(ekf_sqrt(EKF_C(96.28515625)) == EKF_C(9.8125)); /* 9.8125^2, exact in Q format */
+    /* 9.81 from its square: EKF_C rounds 96.2361 by <= 1/2 LSB, which moves the root by
+     * 1/2 LSB / (2 x 9.81); then the stated bound */
+    TEST_ASSERT_TRUE(fabs(d(ekf_sqrt(EKF_C(96.2361))) - 9.81) <= SQRT_REL * 9.81 + LSB + 0.5 * LSB / 19.62);
+#if (EKF_FX_FRAC % 2) == 0
+    /* Perfect squares at every scale are exact, an integer reference: the raw value q^2 is
+     * the number q^2 2^-F, whose root q 2^-F/2 is the raw value q 2^(F/2). */
+    for (k = 0; k < TRIALS; ++k) {
+        const int64_t q = 1 + (int64_t)(ts_uniform(&r) * 3037000498.0); /* q^2 < 2^63 */
+        const ekf_scalar_t want = (ekf_scalar_t)(q << (EKF_FX_FRAC / 2));
+        if (ekf_sqrt((ekf_scalar_t)(q * q)) != want) {
+            printf("sqrt(raw %lld^2) = raw %lld, want %lld\n", (long long)q,
+                   (long long)ekf_sqrt((ekf_scalar_t)(q * q)), (long long)want);
+            TEST_FAIL();
+        }
+    }
+#endif
     for (k = 0; k < 2 * TRIALS; ++k) {
         /* log-uniform over the whole positive range, 1 LSB .. 8e6 */
         const ekf_scalar_t a = ekf_from_double(exp(ts_uniform_in(&r, log(LSB), log(8.3e6))));

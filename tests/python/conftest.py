@@ -1,15 +1,15 @@
-"""Shared fixtures of the Python tests (host tools). Keep small: sub-folders add their own."""
+"""Shared fixtures of the Python tests (host tools). Keep small: sub-folders add their own.
+Missing data or tools skip outside CI and fail under CI=true (prereq.py)."""
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import pytest
 
-REPO = Path(__file__).resolve().parents[2]
-# $ATTEKF_BROAD_DIR, else ../shared/data/broad next to the repository (as attekf.bench)
-BROAD_DIR = Path(os.environ.get("ATTEKF_BROAD_DIR") or REPO.parent / "shared" / "data" / "broad")
+import prereq
+
+REPO = prereq.REPO
 
 
 @pytest.fixture(scope="session")
@@ -25,9 +25,12 @@ def sim_recording():
 
 
 @pytest.fixture(scope="session")
-def broad_trial() -> Path:
-    """Path of one real BROAD trial; skips (visibly, with -ra) when the data is absent."""
-    path = BROAD_DIR / "02_undisturbed_slow_rotation_B.hdf5"
-    if not path.exists():
-        pytest.skip(f"BROAD data not found at {BROAD_DIR} (set ATTEKF_BROAD_DIR)")
-    return path
+def broad_dir() -> Path:
+    """The directory of the 22 real BROAD trials (skips, or fails under CI, without them)."""
+    return prereq.broad_dir()
+
+
+@pytest.fixture(scope="session")
+def broad_trial(broad_dir) -> Path:
+    """Path of one real BROAD trial."""
+    return broad_dir / "02_undisturbed_slow_rotation_B.hdf5"

@@ -1,13 +1,11 @@
 """attekf bench: frame conversions of the baselines, the BROAD metric against its published
 formulas, aggregation by group, and the command on real BROAD trials (skipped, visibly, when
-the data is absent)."""
+the data is absent; failing under CI=true)."""
 
 from __future__ import annotations
 
 import json
 import math
-import os
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,8 +14,6 @@ from attekf import bench as B
 from attekf import metrics as M
 from attekf.cli import main
 from attekf.sim import SimConfig, simulate
-
-BROAD_DIR = Path(B.DEFAULT_DATA)   # $ATTEKF_BROAD_DIR or ../shared/data/broad next to the repository
 
 
 # ---------------------------------------------------------------------------------------------
@@ -195,11 +191,7 @@ def test_cli_errors(tmp_path, capsys):
 # ---------------------------------------------------------------------------------------------
 # On real BROAD trials
 # ---------------------------------------------------------------------------------------------
-@pytest.fixture(scope="module")
-def broad_dir():
-    if not (BROAD_DIR / "02_undisturbed_slow_rotation_B.hdf5").exists():
-        pytest.skip(f"BROAD data not found at {BROAD_DIR} (set ATTEKF_BROAD_DIR): benchmark not checked")
-    return BROAD_DIR
+# broad_dir: conftest.py (skips without the data, fails under CI=true)
 
 
 def _finite(x):
@@ -208,8 +200,9 @@ def _finite(x):
 
 def test_bench_command_on_a_broad_trial(broad_dir, tmp_path, capsys):
     """Our filter, VQF and Fusion on one real trial through the command: table, JSON schema,
-    plot; finite numbers; loose bounds (ours 9D measured ~2.3 deg here, VQF ~1 deg, BROAD's
-    Fusion-like filters 1.5..3 deg)."""
+    plot; finite numbers. Total RMSE measured at 186aab8: ours 9D 1.363, 6D 0.677 deg (bounds
+    3x; they depend on our tuning), VQF 9D 1.014, Fusion 9D 1.71 (third-party filters: the
+    bounds catch a wrong frame conversion, which costs about 90 deg)."""
     out = tmp_path / "bench"
     rc = main(["bench", "--data", str(broad_dir), "--trials", "02", "--methods", "ours,vqf,fusion",
                "--jobs", "2", "--out", str(out), "-q"])
@@ -228,15 +221,15 @@ def test_bench_command_on_a_broad_trial(broad_dir, tmp_path, capsys):
         meta = res["methods"][key]
         assert meta["dim"] in ("9D", "6D") and meta["heading_offset_removed"] == (meta["dim"] == "6D")
         assert meta["cost_measured"]
-        assert all(_finite(r["overall"][k]) and 0 <= r["overall"][k] < 180 for k in B.M_KEYS)
+        assert all(_finite(r["overall"][k]) for k in B.M_KEYS)          # values: below
         assert _finite(r["us_per_sample"]) and 0 < r["us_per_sample"] < 1000
         trial = r["trials"]["02_undisturbed_slow_rotation_B"]
         assert trial["samples"] == 53240 and 30000 < trial["scored"] <= 53240
         assert set(r["groups"]) == {"all_trials", "undisturbed", "rotation", "slow", "no_breaks"}
         assert r["groups"]["rotation"]["total"] == pytest.approx(r["overall"]["total"])
     rr = res["results"]
-    assert rr["ours-9d"]["overall"]["total"] < 6.0
-    assert rr["ours-6d"]["overall"]["total"] < 6.0
+    assert rr["ours-9d"]["overall"]["total"] < 4.1
+    assert rr["ours-6d"]["overall"]["total"] < 2.0
     assert rr["vqf-9d"]["overall"]["total"] < 3.0
     assert rr["fusion-9d"]["overall"]["total"] < 5.0          # 90 deg if the ENU setting is lost
     assert rr["ours-9d"]["trials"]["02_undisturbed_slow_rotation_B"]["heading_offset_removed_deg"] == 0.0

@@ -1,7 +1,9 @@
-"""Regression tests for what fuzzing found in the host tools (docs/reliability.md, "Findings").
+"""Corrupt CAN logs of every format `attekf replay` reads must give a one-line ReplayError
+naming the file, never another exception (docs/reliability.md, "Findings"): python-can's
+readers raise struct errors and the like on such input.
 
-The fuzz target itself (tests/fuzz/fuzz_parsers.py, atheris) runs in scripts/fuzz.sh; these
-are its crashing inputs, kept as plain tests.
+The fuzz target (tests/fuzz/fuzz_parsers.py, atheris) runs in scripts/fuzz.sh; these inputs
+run in every pytest.
 """
 import pytest
 

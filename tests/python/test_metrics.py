@@ -95,7 +95,7 @@ def test_euler_convention_zyx_body_to_enu():
     # yaw 90 deg turns body x (east at yaw 0) to north (ENU y)
     q = m.euler_to_quat(np.array([0.0, 0.0, math.pi / 2]))
     np.testing.assert_allclose(m.quat_rotate(q, np.array([1.0, 0, 0])), [0, 1, 0], atol=1e-12)
-    # positive pitch raises the nose: body x points up-forward... rotated about body y, x goes to -z
+    # positive pitch is a right-handed turn about body y: body x (the nose) goes down, towards -z
     q = m.euler_to_quat(np.array([0.0, math.radians(30), 0.0]))
     np.testing.assert_allclose(m.quat_rotate(q, np.array([1.0, 0, 0])),
                                [math.cos(math.radians(30)), 0, -math.sin(math.radians(30))], atol=1e-12)

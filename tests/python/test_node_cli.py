@@ -105,7 +105,9 @@ def test_replay_outputs_follow_the_sample_clock(replayed):
 
 def test_replay_estimate_tracks_the_truth(replayed):
     """Sanity of the whole path (quantisation included): the node's attitude after the initial
-    rest is close to the simulator's truth. Accuracy itself is the estimator's tests' job."""
+    rest is close to the simulator's truth. Accuracy itself is the estimator's tests' job.
+    Median error measured at 186aab8: 2.38 deg (6 s from a start aligned on the first
+    samples); bound 3x. Depends on the filter's tuning."""
     from attekf.metrics import error_quat_earth, euler_to_quat, total_error
     import can
     rec, d, _st, _ = replayed
@@ -116,9 +118,32 @@ def test_replay_estimate_tracks_the_truth(replayed):
     seq = np.array([r.seq for r in rows])
     q = euler_to_quat(np.array([r.euler for r in rows]))
     err = np.degrees(total_error(error_quat_earth(q, rec.quat_ref[seq])))
-    assert np.median(err) < 20.0
+    assert np.median(err) < 7.0, np.median(err)
 
 
 def test_replay_logs_events_at_info(replayed):
     _rec, _d, _st, stderr = replayed
     assert "[info] started" in stderr and "[info] aligned" in stderr and "counters:" in stderr
+
+
+@pytest.mark.parametrize("offset", [0, 2])  # between two samples; inside one (after 2 of its frames)
+def test_one_stale_imu_sync_is_late_not_a_restart(node, tmp_path, offset):
+    """One 3-s-old IMU_SYNC line inserted into a replay log: counted late and dropped; no
+    resync, no re-alignment, no sample missing (docs/can_protocol.md, "Node behaviour")."""
+    rec = simulate(SimConfig(duration_s=10.0, rate_hz=100.0, seed=4, initial_rest_s=1.0))
+    write_recording_csv(str(tmp_path / "rec.csv"), rec)
+    assert attekf(["replay", "-q", str(tmp_path / "rec.csv"), "--to-log", str(tmp_path / "in.log")]) == 0
+    lines = (tmp_path / "in.log").read_text().splitlines()
+    assert len(lines) == 4 * len(rec)                   # gyro, accel, mag, sync per sample
+    syncs = [ln for ln in lines if ln.split()[2].startswith("103#")]
+    at = 4 * 601 + offset                               # after sample 600 (t = 6 s), + offset frames
+    stamp = lines[at - 1].split()[0]
+    stale = f"{stamp} {syncs[300].split(' ', 1)[1]}"    # the IMU_SYNC of t = 3 s, re-sent at 6 s
+    (tmp_path / "stale.log").write_text("\n".join(lines[:at] + [stale] + lines[at:]) + "\n")
+    p = run("--replay", tmp_path / "stale.log", "--stats", tmp_path / "st.json", "-l", "warn")
+    assert p.returncode == 0, p.stderr
+    c = json.loads((tmp_path / "st.json").read_text())["counters"]
+    assert c["late"] == 1 and "late 300" in p.stderr
+    assert c["resync"] == 0 and c["realign"] == 0 and c["missing"] == 0 and c["gaps"] == 0
+    assert c["time_errors"] == 0
+    assert c["samples"] == len(rec) + 1 and c["outputs"] == len(rec)   # 100 Hz: every sample

@@ -1,7 +1,7 @@
 /*
  * test_app.c - the application loop (firmware/app/app.c) on the virtual backend: output
- * schedule, gaps, long gaps, time errors, sensor restarts, staleness and heartbeats,
- * saturation, rejected input, link loss, and determinism of a replay.
+ * schedule, gaps, long gaps, time errors, stale samples and confirmed sensor restarts,
+ * staleness and heartbeats, saturation, rejected input, link loss, and determinism of a replay.
  */
 #include <math.h>
 #include <string.h>
@@ -210,15 +210,16 @@ static void test_time_errors_then_resync(void)
     TEST_ASSERT_EQUAL_UINT32(0u, counter(HAL_CNT_RESYNC));
     TEST_ASSERT_TRUE((flags_since(0) & HAL_FLAG_TIME_ERROR) != 0u);
 
-    /* the sender's clock restarts (time back to 0, sequence continues): after
-     * APP_TIME_ERRORS_RESYNC samples the node follows it */
+    /* the sender's clock restarts (time back to 0, sequence continues): the node follows it
+     * on the APP_RESTART_CONFIRM-th sample of the new clock; the ones before are dropped */
     setUp();
     start(&app_default_settings);
     push_samples(0u, 5000000u, 20);
     push_samples(20u, 0u, 20);
     run_to_end();
-    TEST_ASSERT_EQUAL_UINT32(APP_TIME_ERRORS_RESYNC, counter(HAL_CNT_TIME_ERRORS));
+    TEST_ASSERT_EQUAL_UINT32(APP_RESTART_CONFIRM - 1u, counter(HAL_CNT_TIME_ERRORS));
     TEST_ASSERT_EQUAL_UINT32(1u, counter(HAL_CNT_RESYNC));
+    TEST_ASSERT_EQUAL_UINT32(0u, counter(HAL_CNT_LATE) + counter(HAL_CNT_REALIGN));
     TEST_ASSERT_TRUE((app_last_output(&app)->flags & HAL_FLAG_ALIGNED) != 0u);
 }
 
@@ -229,8 +230,112 @@ static void test_sequence_restart_resyncs(void)
     push_samples(0u, 20u * PERIOD_US, 20); /* counter restarted, time continues */
     run_to_end();
     TEST_ASSERT_EQUAL_UINT32(1u, counter(HAL_CNT_RESYNC));
+    TEST_ASSERT_EQUAL_UINT32(APP_RESTART_CONFIRM - 1u, counter(HAL_CNT_TIME_ERRORS));
     TEST_ASSERT_EQUAL_UINT32(0u, counter(HAL_CNT_GAPS));
     TEST_ASSERT_EQUAL_UINT32(40u, counter(HAL_CNT_SAMPLES));
+}
+
+/* Frames of sample (seq, t) onto the virtual bus; sync_only: its IMU_SYNC frame alone. */
+static void push_sample_frames(uint16_t seq, uint64_t t_us, int sync_only)
+{
+    hal_can_frame_t f[HAL_CAN_SAMPLE_FRAMES];
+    const hal_sample_t s = level(seq, t_us);
+    const size_t n = hal_can_encode_sample(&s, f);
+    size_t i;
+    TEST_ASSERT_EQUAL_HEX32(0x103u, f[n - 1u].id); /* IMU_SYNC comes last */
+    for (i = sync_only ? n - 1u : 0u; i < n; ++i) {
+        TEST_ASSERT_EQUAL_INT(HAL_OK, hal_virtual_push_frame(&v, &f[i]));
+    }
+}
+
+/* One stale IMU_SYNC (sample 99, 3 s old) between samples 399 and 400 of a 100 Hz stream:
+ * the CAN assembly hands it on (it is more than 64 samples old), the application drops it
+ * as late; no resync, no re-alignment, no sample missing, the filter stays aligned. */
+static void test_one_stale_frame_is_late_not_a_restart(void)
+{
+    int i;
+    uint16_t k;
+    start(&app_default_settings);
+    for (k = 0; k < 500u; ++k) {
+        push_sample_frames(k, PERIOD_US * k, 0);
+        if (k == 399u) {
+            push_sample_frames(99u, 99u * PERIOD_US, 1);
+        }
+    }
+    run_to_end();
+    TEST_ASSERT_EQUAL_UINT32(1u, counter(HAL_CNT_LATE));
+    TEST_ASSERT_EQUAL_UINT32(0u, counter(HAL_CNT_RESYNC) + counter(HAL_CNT_REALIGN) + counter(HAL_CNT_GAPS) +
+                                     counter(HAL_CNT_MISSING) + counter(HAL_CNT_TIME_ERRORS));
+    TEST_ASSERT_EQUAL_UINT32(501u, counter(HAL_CNT_SAMPLES));
+    TEST_ASSERT_EQUAL_INT(500, nout); /* 100 Hz: one output per stream sample */
+    for (i = 20; i < nout; ++i) {
+        TEST_ASSERT_EQUAL_UINT16((uint16_t)i, outs[i].seq);
+        TEST_ASSERT_TRUE((outs[i].flags & HAL_FLAG_ALIGNED) != 0u);
+        TEST_ASSERT_TRUE((outs[i].flags & HAL_FLAG_RESTARTED) == 0u);
+        /* the late sample is flagged on the next output only */
+        TEST_ASSERT_EQUAL_INT(i == 400, (outs[i].flags & HAL_FLAG_FRAME_ERROR) != 0u);
+    }
+    TEST_ASSERT_EQUAL_UINT32(1u, app_last_output(&app)->counters[HAL_CNT_LATE]);
+}
+
+/* A burst of stale samples shorter than APP_RESTART_CONFIRM (consecutive among themselves) is
+ * dropped as late too; the stream goes on without a restart. */
+static void test_stale_burst_is_late_not_a_restart(void)
+{
+    start(&app_default_settings);
+    push_samples(0u, 0u, 300);
+    push_samples(100u, 100u * PERIOD_US, (int)APP_RESTART_CONFIRM - 1); /* 2 s old */
+    push_samples(300u, 300u * PERIOD_US, 100);
+    run_to_end();
+    TEST_ASSERT_EQUAL_UINT32(APP_RESTART_CONFIRM - 1u, counter(HAL_CNT_LATE));
+    TEST_ASSERT_EQUAL_UINT32(0u, counter(HAL_CNT_RESYNC) + counter(HAL_CNT_REALIGN) + counter(HAL_CNT_MISSING));
+    TEST_ASSERT_TRUE((flags_since(0) & HAL_FLAG_FRAME_ERROR) != 0u);
+    TEST_ASSERT_TRUE((flags_since(0) & HAL_FLAG_RESTARTED) == 0u);
+}
+
+/* A sensor that really restarts (sequence and clock from 0) is followed after
+ * APP_RESTART_CONFIRM samples: the first ones look like stale samples and are dropped. */
+static void test_sensor_restart_is_followed_after_confirmation(void)
+{
+    int i, k, restarted = -1;
+    hal_virtual_set_clock(&v, 60000000u); /* no silence before the first sample */
+    start(&app_default_settings);
+    push_samples(5000u, 60000000u, 100);
+    for (k = 0; k < 100; ++k) { /* the sensor's clock restarts, the receiver's goes on */
+        hal_sample_t smp = level((uint16_t)k, PERIOD_US * (uint64_t)k);
+        smp.rx_us = 61000000u + PERIOD_US * (uint64_t)k;
+        TEST_ASSERT_EQUAL_INT(HAL_OK, hal_virtual_push_sample(&v, &smp));
+    }
+    run_to_end();
+    TEST_ASSERT_EQUAL_UINT32(APP_RESTART_CONFIRM - 1u, counter(HAL_CNT_LATE));
+    TEST_ASSERT_EQUAL_UINT32(1u, counter(HAL_CNT_RESYNC));
+    TEST_ASSERT_EQUAL_UINT32(0u, counter(HAL_CNT_REALIGN) + counter(HAL_CNT_TIME_ERRORS));
+    for (i = 0; i < nout; ++i) {
+        if ((outs[i].flags & HAL_FLAG_RESTARTED) != 0u) {
+            restarted = i;
+            break;
+        }
+    }
+    TEST_ASSERT_TRUE(restarted >= 0);
+    /* the first output of the new stream, on the sample that confirmed it */
+    TEST_ASSERT_EQUAL_UINT8(HAL_OUT_ATTITUDE, outs[restarted].kind);
+    TEST_ASSERT_EQUAL_UINT16((uint16_t)(APP_RESTART_CONFIRM - 1u), outs[restarted].seq);
+    TEST_ASSERT_EQUAL_INT(100, restarted);
+    TEST_ASSERT_EQUAL_UINT16(5099u, outs[restarted - 1].seq);
+    TEST_ASSERT_TRUE((outs[restarted].flags & HAL_FLAG_ALIGNED) == 0u); /* aligning again */
+    TEST_ASSERT_TRUE((outs[nout - 1].flags & HAL_FLAG_ALIGNED) != 0u);
+
+    /* two off-stream samples that do not continue each other do not add up to a restart */
+    setUp();
+    start(&app_default_settings);
+    push_samples(5000u, 60000000u, 50);
+    push_samples(0u, 0u, 1);
+    push_samples(900u, 9000000u, 1);
+    push_samples(0u, 1000000u, 1);
+    push_samples(5050u, 60000000u + 50u * PERIOD_US, 50);
+    run_to_end();
+    TEST_ASSERT_EQUAL_UINT32(3u, counter(HAL_CNT_LATE));
+    TEST_ASSERT_EQUAL_UINT32(0u, counter(HAL_CNT_RESYNC) + counter(HAL_CNT_MISSING));
 }
 
 static void test_stale_input_heartbeats_and_resume(void)
@@ -437,6 +542,9 @@ int main(void)
     RUN_TEST(test_long_gap_restarts_the_filter);
     RUN_TEST(test_time_errors_then_resync);
     RUN_TEST(test_sequence_restart_resyncs);
+    RUN_TEST(test_one_stale_frame_is_late_not_a_restart);
+    RUN_TEST(test_stale_burst_is_late_not_a_restart);
+    RUN_TEST(test_sensor_restart_is_followed_after_confirmation);
     RUN_TEST(test_stale_input_heartbeats_and_resume);
     RUN_TEST(test_saturated_sensor_is_not_fused);
     RUN_TEST(test_bad_values_are_rejected_and_counted);

@@ -1,0 +1,53 @@
+"""The headline figure, guarded: the mean total RMSE of this filter over the 22 BROAD trials
+(docs/accuracy.md, "Latest result"), 9D and 6D, float build, through the binding, scored as
+`attekf bench` scores `ours-9d` / `ours-6d`.
+
+The bound is the measured mean plus a small margin: a change that costs more than that on the
+development set is a regression to explain (or, if intended, a new measurement to record here
+and in docs/accuracy.md). Only the C filter runs (about 20 s for the 44 runs); the pure-Python
+baselines are `attekf bench`'s job. Without the data the test skips, under CI=true it fails
+(prereq.py)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from attekf import bench as B
+from attekf.io import read_recording
+
+# Mean total RMSE over the 22 trials, deg, measured by this test at 186aab8 (the table of
+# docs/accuracy.md, from `attekf bench`, has the same 1.74 / 1.96). Depends on the filter and
+# its tuning: re-measure after a change of the estimator or its defaults.
+MEASURED_DEG = {"ours-9d": 1.7406, "ours-6d": 1.9555}
+MARGIN_DEG = 0.05  # about 3 % of the figure; the float build is deterministic on one machine
+
+
+@pytest.fixture(scope="module")
+def broad_means(broad_dir):
+    methods = B.all_methods()
+    cfg = B.RunConfig()  # float build, att_default_settings, as attekf bench runs ours
+    rows = {key: [] for key in MEASURED_DEG}
+    for path in B.find_trials(str(broad_dir)):
+        rec = read_recording(path)
+        for key in rows:
+            q, _sec, extra = B.run_method(rec, methods[key], cfg)
+            r = B.score(rec, q, methods[key].six_d)
+            rows[key].append((rec.name, float(r["total"]), int(extra["samples_refused"])))
+    return rows
+
+
+@pytest.mark.parametrize("key", sorted(MEASURED_DEG))
+def test_mean_total_rmse_over_the_22_trials(broad_means, key):
+    rows = broad_means[key]
+    assert len(rows) == 22, [r[0] for r in rows]
+    totals = np.array([r[1] for r in rows])
+    assert all(math.isfinite(v) for v in totals), rows
+    assert sum(r[2] for r in rows) == 0          # no sample refused on real data
+    mean = float(totals.mean())
+    bound = MEASURED_DEG[key] + MARGIN_DEG
+    worst = max(rows, key=lambda r: r[1])
+    assert mean <= bound, (f"{key}: mean total RMSE {mean:.4f} deg over 22 trials > {bound:.4f} "
+                           f"(measured {MEASURED_DEG[key]}); worst trial {worst[0]} {worst[1]:.3f} deg")
