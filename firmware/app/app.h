@@ -37,6 +37,10 @@
 #include "att.h"
 #include "hal.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* Consecutive time errors after which the sender's clock is taken to have restarted. */
 #define APP_TIME_ERRORS_RESYNC 3u
 
@@ -98,5 +102,9 @@ const att_ekf_t *app_filter(const app_t *app);
 
 /* The last output published (all zero before the first). */
 const hal_output_t *app_last_output(const app_t *app);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* APP_H */

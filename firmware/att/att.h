@@ -31,6 +31,10 @@
 #include "att_rest.h"
 #include "ekf.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* Settings: every tunable, with its unit. att_default_settings holds the defaults. */
 typedef struct {
     /* process model */
@@ -224,5 +228,9 @@ const ekf_scalar_t *att_state(const att_ekf_t *f);                   /* x[ATT_N]
 const ekf_scalar_t *att_covariance(const att_ekf_t *f);              /* P, row-major */
 uint32_t att_flags(const att_ekf_t *f);
 const att_diag_t *att_diag(const att_ekf_t *f);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* ATT_H */

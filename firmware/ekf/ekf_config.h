@@ -19,6 +19,10 @@
 #ifndef EKF_CONFIG_H
 #define EKF_CONFIG_H
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 #if defined(EKF_SCALAR_FLOAT) + defined(EKF_SCALAR_DOUBLE) + defined(EKF_SCALAR_FIXED) > 1
 #error "ekf_config.h: define at most one of EKF_SCALAR_FLOAT, EKF_SCALAR_DOUBLE, EKF_SCALAR_FIXED"
 #endif
@@ -35,6 +39,10 @@
 #endif
 #if EKF_MAX_STATES > 255 || EKF_MAX_STATES < 1
 #error "EKF_MAX_STATES must be in 1..255"
+#endif
+
+#ifdef __cplusplus
+}
 #endif
 
 #endif /* EKF_CONFIG_H */
