@@ -191,6 +191,8 @@ typedef struct {
     ekf_status_t mag;
 } att_step_report_t;
 
+/* Linked as att_init_for_EKF_SCALAR_<type>: see EKF_SCALAR_LINK_NAME in ekf_config.h. */
+#define att_init EKF_SCALAR_LINK_NAME(att_init)
 /* Validates settings and resets the filter to "not aligned". EKF_ERR_SETTINGS if a setting
  * is out of range (the filter is then not usable until a successful att_init). */
 ekf_status_t att_init(att_ekf_t *f, const att_settings_t *settings);

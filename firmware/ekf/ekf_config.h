@@ -31,6 +31,20 @@ extern "C" {
 #define EKF_SCALAR_FLOAT 1
 #endif
 
+/* The scalar type in the link. Code compiled for one scalar type and linked against a
+ * library built for another would hand every number over in the wrong representation, so
+ * att.h declares att_init under the name EKF_SCALAR_LINK_NAME(att_init), which carries the
+ * scalar type and which only the library of that type defines. A mismatch fails to link:
+ *     undefined reference to `att_init_for_EKF_SCALAR_FLOAT'
+ * names the type the calling code was compiled for (docs/porting.md, "Scalar type"). */
+#if defined(EKF_SCALAR_DOUBLE)
+#define EKF_SCALAR_LINK_NAME(name) name##_for_EKF_SCALAR_DOUBLE
+#elif defined(EKF_SCALAR_FIXED)
+#define EKF_SCALAR_LINK_NAME(name) name##_for_EKF_SCALAR_FIXED
+#else
+#define EKF_SCALAR_LINK_NAME(name) name##_for_EKF_SCALAR_FLOAT
+#endif
+
 /* Largest state dimension any generic routine must handle. Sizes two scratch vectors on
  * the stack of ekf_update_scalar() and one index table of ekf_cov_propagate(); the models'
  * own arrays are sized by their own constants. At most 255 (dimensions are uint8_t). */
