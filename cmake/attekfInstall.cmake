@@ -14,8 +14,7 @@ set(_libs attekf_f attekf_d attekf_x attekf_models_f attekf_models_d)
 set(_cmakedir "${CMAKE_INSTALL_LIBDIR}/cmake/attekf")
 
 install(TARGETS ${_libs} EXPORT attekfTargets
-        ARCHIVE DESTINATION "${CMAKE_INSTALL_LIBDIR}"
-        INCLUDES DESTINATION "${CMAKE_INSTALL_INCLUDEDIR}/attekf")
+        ARCHIVE DESTINATION "${CMAKE_INSTALL_LIBDIR}")
 install(FILES ${ATTEKF_CORE_HEADERS} ${ATTEKF_MODELS_HEADERS}
         DESTINATION "${CMAKE_INSTALL_INCLUDEDIR}/attekf")
 install(EXPORT attekfTargets NAMESPACE attekf:: DESTINATION "${_cmakedir}")
