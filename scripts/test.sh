@@ -20,6 +20,11 @@ echo "[test] Cortex-M builds under QEMU (scripts/test_target.sh)"
 echo "[test] pytest"
 "$ROOT/.venv/bin/python" -m pytest "$ROOT/tests/python" -q -ra || status=1
 
+# The pip package as a user gets it: sdist -> wheel (CMake) -> a fresh virtual environment
+# outside the repository, every command and the Python API there (tests/package/).
+echo "[test] Python package from its sdist in a fresh virtual environment (tests/package)"
+"$ROOT/.venv/bin/python" -m pytest "$ROOT/tests/package" -q -ra || status=1
+
 # Reliability (docs/reliability.md): static analysis, the ctest under ASan + UBSan, valgrind on
 # the node, a short fuzz run of every target (scripts/fuzz.sh --time 3600 for a long one).
 echo "[test] static analysis: cppcheck + clang-tidy (scripts/static_analysis.sh)"
