@@ -79,14 +79,18 @@ class Estimate(NamedTuple):
         return self.status.startswith("EKF_ERR")
 
 
-def _vec3(name: str, unit: str, v) -> np.ndarray:
+def _put3(dst: np.ndarray, name: str, unit: str, v) -> None:
+    """dst[:] = v for three numbers v (list, tuple or array), else an error naming the argument."""
     try:
-        a = np.asarray(v, dtype=np.float64).reshape(-1)
+        n = len(v)
+    except TypeError:
+        raise TypeError(f"{name}: {v!r} is not three numbers ({unit})") from None
+    if n != 3:
+        raise ValueError(f"{name}: expected three numbers ({unit}), got {n}")
+    try:
+        dst[:] = v
     except (TypeError, ValueError):
         raise TypeError(f"{name}: {v!r} is not three numbers ({unit})") from None
-    if a.shape != (3,):
-        raise ValueError(f"{name}: expected three numbers ({unit}), got {a.size}")
-    return a
 
 
 class Filter:
@@ -127,6 +131,7 @@ class Filter:
         self._p_out = (self._state.ctypes.data_as(dp), self._var.ctypes.data_as(dp),
                        self._quat.ctypes.data_as(dp), self._flags.ctypes.data_as(u32p),
                        self._status.ctypes.data_as(u8p))
+        self._status_names: dict = {}
 
     # ---- properties ---------------------------------------------------------------------
     @property
@@ -174,21 +179,24 @@ class Filter:
             self._in[0, 0] = float(dt)
         except (TypeError, ValueError):
             raise TypeError(f"dt: {dt!r} is not a number (s)") from None
-        self._in[1] = _vec3("gyr", "rad/s", gyr)
-        self._in[2] = _vec3("acc", "m/s^2", acc)
+        _put3(self._in[1], "gyr", "rad/s", gyr)
+        _put3(self._in[2], "acc", "m/s^2", acc)
         p_mag = None
         if mag is not None:
-            self._in[3] = _vec3("mag", "uT", mag)
+            _put3(self._in[3], "mag", "uT", mag)
             p_mag = self._p_in[3]
         rc = self._lib.lib.attekf_run(self._fbuf, 1, self._p_in[0], self._p_in[1], self._p_in[2],
                                       p_mag, *self._p_out)
         if rc != 0:
             raise NativeError(f"attekf_run: {self._lib.status_name(rc)}")
         self._t_last = None
+        code = int(self._status[0])
+        status = self._status_names.get(code)
+        if status is None:
+            status = self._status_names[code] = self._lib.status_name(code)
         return Estimate(quaternion=self._quat.copy(), euler=self._state[3:6].copy(),
                         sigma=np.sqrt(self._var[3:6]), rate=self._state[0:3].copy(),
-                        flags=Flag(int(self._flags[0])),
-                        status=self._lib.status_name(int(self._status[0])))
+                        flags=Flag(int(self._flags[0])), status=status)
 
     def update_batch(self, gyr: np.ndarray, acc: np.ndarray, mag: Optional[np.ndarray] = None, *,
                      t: Optional[np.ndarray] = None, rate_hz: Optional[float] = None,
