@@ -85,7 +85,8 @@ def installed(tmp_path_factory) -> Installed:
     digest = hashlib.sha256(sdist.read_bytes()).hexdigest()[:16]
     wheels = CACHE / digest
     if not list(wheels.glob("attekf-*.whl")):
-        shutil.rmtree(wheels, ignore_errors=True)
+        for old in CACHE.glob("[0-9a-f]" * 16):   # wheels of earlier sdists
+            shutil.rmtree(old, ignore_errors=True)
         _run(pip + ["wheel", "--no-deps", "-w", root / "wheel", sdist], inst.work, inst.env)
         wheels.mkdir(parents=True)
         for w in (root / "wheel").glob("attekf-*.whl"):
@@ -101,6 +102,8 @@ def installed(tmp_path_factory) -> Installed:
                           text=True, timeout=600)
     if proc.returncode != 0:
         _run(pip + ["download", "-d", house] + req, inst.work, inst.env)
+        for w in house.glob("attekf-*"):     # only the dependencies are kept there
+            w.unlink()
         _run(install, inst.work, inst.env)
     return inst
 
