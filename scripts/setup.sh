@@ -24,7 +24,7 @@ log() { printf '[setup] %s\n' "$*"; }
 
 # --- Debian packages ---------------------------------------------------------------
 APT_PACKAGES=(
-  build-essential cmake ninja-build git python3 python3-venv python3-pip
+  build-essential cmake ninja-build git pkgconf python3 python3-venv python3-pip
   gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm
   user-mode-linux kmod iproute2 can-utils
   clang libclang-rt-14-dev lld cppcheck clang-tidy valgrind
@@ -56,7 +56,9 @@ want="$(sha256sum "$LOCK" "$ROOT/host_tools/pyproject.toml" | sha256sum | cut -d
 if [ ! -f "$STAMP" ] || [ "$(cat "$STAMP")" != "$want" ]; then
   log "installing pinned Python packages"
   "$VENV/bin/pip" install -q --disable-pip-version-check -r "$LOCK"
-  "$VENV/bin/pip" install -q --disable-pip-version-check --no-deps -e "$ROOT/host_tools"
+  # Editable: Python from host_tools/, the C libraries from build/host (built below); the
+  # build backend (scikit-build-core) comes pinned from the lock, hence no build isolation.
+  "$VENV/bin/pip" install -q --disable-pip-version-check --no-deps --no-build-isolation -e "$ROOT/host_tools"
   echo "$want" > "$STAMP"
 else
   log "Python packages present"

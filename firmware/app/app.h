@@ -40,6 +40,10 @@
 #include "att.h"
 #include "hal.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* Consecutive samples that continue each other but not the stream (consecutive sequence
  * numbers within seq_window, increasing times within max_gap_us) after which the sender is
  * taken to have restarted. A stale or corrupted frame yields one such sample (the CAN
@@ -109,5 +113,9 @@ const att_ekf_t *app_filter(const app_t *app);
 
 /* The last output published (all zero before the first). */
 const hal_output_t *app_last_output(const app_t *app);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* APP_H */

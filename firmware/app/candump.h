@@ -16,6 +16,10 @@
 
 #include "hal_can.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 typedef enum {
     CANDUMP_BAD = -1,  /* not a candump line (or a value out of range): frame unspecified */
     CANDUMP_SKIP = 0,  /* blank, comment, remote or CAN FD frame: nothing for us */
@@ -30,5 +34,9 @@ candump_result_t candump_parse_line(const char *line, hal_can_frame_t *frame);
  * the characters written without the NUL, or -1 if they do not fit or the frame cannot be
  * written (dlc > 8, id out of range, a channel name with a space). */
 int candump_format_line(const hal_can_frame_t *frame, const char *channel, char *buf, size_t size);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* CANDUMP_H */

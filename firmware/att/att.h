@@ -31,6 +31,10 @@
 #include "att_rest.h"
 #include "ekf.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* Settings: every tunable, with its unit. att_default_settings holds the defaults. */
 typedef struct {
     /* process model */
@@ -187,6 +191,8 @@ typedef struct {
     ekf_status_t mag;
 } att_step_report_t;
 
+/* Linked as att_init_for_EKF_SCALAR_<type>: see EKF_SCALAR_LINK_NAME in ekf_config.h. */
+#define att_init EKF_SCALAR_LINK_NAME(att_init)
 /* Validates settings and resets the filter to "not aligned". EKF_ERR_SETTINGS if a setting
  * is out of range (the filter is then not usable until a successful att_init). */
 ekf_status_t att_init(att_ekf_t *f, const att_settings_t *settings);
@@ -224,5 +230,9 @@ const ekf_scalar_t *att_state(const att_ekf_t *f);                   /* x[ATT_N]
 const ekf_scalar_t *att_covariance(const att_ekf_t *f);              /* P, row-major */
 uint32_t att_flags(const att_ekf_t *f);
 const att_diag_t *att_diag(const att_ekf_t *f);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* ATT_H */

@@ -15,6 +15,10 @@
 
 #include "ekf_scalar.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 enum {
     ATT_P = 0,
     ATT_Q = 1,
@@ -38,5 +42,9 @@ typedef struct {
     ekf_scalar_t cth;
     ekf_scalar_t secth;
 } att_trig_t;
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* ATT_DEFS_H */

@@ -10,6 +10,10 @@
 
 #include "ekf.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 #include "att_defs.h"
 
 /* Number of structurally non-zero entries of D = F - I. */
@@ -69,5 +73,9 @@ void att_gen_accel_jacobian(const att_trig_t *t, ekf_scalar_t hj[6]);
  * dip = atan2(-out[2], |out[0..1]|). t: trigonometry of (phi, theta).
  */
 void att_gen_mag_level(const att_trig_t *t, const ekf_scalar_t m[3], ekf_scalar_t out[3]);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* ATT_GEN_H */

@@ -12,6 +12,10 @@
 #include "att_defs.h"
 #include "ekf.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* sin/cos of phi and theta and sec(theta), with |theta| clamped to theta_limit (rad,
  * in (0, pi/2)) so that sec(theta) stays finite near the gimbal-lock singularity.
  * Returns 1 if the clamp was active. */
@@ -40,5 +44,9 @@ int att_model_normalise(ekf_scalar_t x[ATT_N], ekf_scalar_t P[ATT_N * ATT_N]);
 
 /* Unit quaternion (w, x, y, z) of R = Rz(psi) Ry(theta) Rx(phi), body to ENU. */
 void att_model_euler_to_quat(ekf_scalar_t phi, ekf_scalar_t theta, ekf_scalar_t psi, ekf_scalar_t q[4]);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* ATT_MODEL_H */

@@ -19,6 +19,10 @@
 
 #include "ekf_scalar.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 typedef struct {
     ekf_scalar_t rest_gyro;  /* rad/s: rate (and its deviation) below which the sensor may rest */
     ekf_scalar_t rest_accel; /* m/s^2: deviation of the specific force from its low-passed value */
@@ -45,5 +49,9 @@ void att_rest_reset(att_rest_t *r);
  * Returns 1 while at rest. */
 int att_rest_update(att_rest_t *r, const att_rest_settings_t *s, const ekf_scalar_t gyro[3],
                     const ekf_scalar_t accel[3], ekf_scalar_t dt);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* ATT_REST_H */

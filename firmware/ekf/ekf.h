@@ -25,6 +25,10 @@
 
 #include "ekf_scalar.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* Result of every entry point of the library (generic core and models). Errors leave
  * the filter exactly as it was; EKF_GATED and EKF_SKIPPED are not errors (the filter
  * stays consistent) but report that a measurement was not fused. */
@@ -140,5 +144,9 @@ int ekf_cov_ensure_pd(ekf_scalar_t *P, uint8_t n, ekf_scalar_t rel_margin, ekf_s
 
 /* 1 if every entry of v[0..len) is finite. */
 int ekf_all_finite(const ekf_scalar_t *v, uint16_t len);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* EKF_H */

@@ -19,12 +19,30 @@
 #ifndef EKF_CONFIG_H
 #define EKF_CONFIG_H
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 #if defined(EKF_SCALAR_FLOAT) + defined(EKF_SCALAR_DOUBLE) + defined(EKF_SCALAR_FIXED) > 1
 #error "ekf_config.h: define at most one of EKF_SCALAR_FLOAT, EKF_SCALAR_DOUBLE, EKF_SCALAR_FIXED"
 #endif
 
 #if !defined(EKF_SCALAR_DOUBLE) && !defined(EKF_SCALAR_FLOAT) && !defined(EKF_SCALAR_FIXED)
 #define EKF_SCALAR_FLOAT 1
+#endif
+
+/* The scalar type in the link. Code compiled for one scalar type and linked against a
+ * library built for another would hand every number over in the wrong representation, so
+ * att.h declares att_init under the name EKF_SCALAR_LINK_NAME(att_init), which carries the
+ * scalar type and which only the library of that type defines. A mismatch fails to link:
+ *     undefined reference to `att_init_for_EKF_SCALAR_FLOAT'
+ * names the type the calling code was compiled for (docs/porting.md, "Scalar type"). */
+#if defined(EKF_SCALAR_DOUBLE)
+#define EKF_SCALAR_LINK_NAME(name) name##_for_EKF_SCALAR_DOUBLE
+#elif defined(EKF_SCALAR_FIXED)
+#define EKF_SCALAR_LINK_NAME(name) name##_for_EKF_SCALAR_FIXED
+#else
+#define EKF_SCALAR_LINK_NAME(name) name##_for_EKF_SCALAR_FLOAT
 #endif
 
 /* Largest state dimension any generic routine must handle. Sizes two scratch vectors on
@@ -35,6 +53,10 @@
 #endif
 #if EKF_MAX_STATES > 255 || EKF_MAX_STATES < 1
 #error "EKF_MAX_STATES must be in 1..255"
+#endif
+
+#ifdef __cplusplus
+}
 #endif
 
 #endif /* EKF_CONFIG_H */

@@ -36,6 +36,10 @@
 
 #include <stdint.h>
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 #ifndef EKF_FX_FRAC
 #define EKF_FX_FRAC 34
 #endif
@@ -119,5 +123,9 @@ ekf_fx_t ekf_fx_from_double(double a);
 ekf_fx_t ekf_fx_from_int(int32_t a);
 float ekf_fx_to_float(ekf_fx_t a);
 double ekf_fx_to_double(ekf_fx_t a);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* EKF_FIXED_H */

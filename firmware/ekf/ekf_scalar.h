@@ -22,6 +22,10 @@
 
 #include "ekf_config.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 #if defined(EKF_SCALAR_DOUBLE)
 
 typedef double ekf_scalar_t;
@@ -164,5 +168,9 @@ static inline ekf_scalar_t ekf_wrap_pi(ekf_scalar_t a)
     }
     return a;
 }
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* EKF_SCALAR_H */

@@ -28,6 +28,10 @@
 #include "ca_gen.h"
 #include "ekf.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 #define CA_MAX_DIMS 3
 #define CA_MAX_N (CA_BLOCK * CA_MAX_DIMS)
 #define CA_DEFAULT_DT_S EKF_C(1.0) /* MATLAB constacc/constaccjac default step, s */
@@ -89,5 +93,9 @@ ekf_status_t ca_predict(ca_ekf_t *f, ekf_scalar_t dt);
  * Returns EKF_OK, or EKF_GATED if at least one axis was gated (the others are fused);
  * info (may be NULL) receives dims ekf_innov_t. Errors leave the filter unchanged. */
 ekf_status_t ca_update_position(ca_ekf_t *f, const ekf_scalar_t *z, ekf_innov_t *info);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* CA_H */

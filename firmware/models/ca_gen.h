@@ -10,6 +10,10 @@
 
 #include "ekf.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* State entries per spatial axis: position (m), velocity (m/s), acceleration (m/s^2). */
 #define CA_BLOCK 3
 
@@ -37,5 +41,9 @@ void ca_gen_block_jacobian(ekf_scalar_t dt, ekf_scalar_t d[CA_GEN_BLOCK_NNZ]);
  * velocity, acceleration) to the acceleration increment w. dt: step (s).
  */
 void ca_gen_block_noise(ekf_scalar_t dt, ekf_scalar_t g[CA_BLOCK]);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* CA_GEN_H */

@@ -28,6 +28,10 @@
 #include "ekf.h"
 #include "radar_gen.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* Settings, with units; radar_default_settings holds the defaults. */
 typedef struct {
     ekf_scalar_t accel_var_x; /* variance of the target acceleration held over a step, x axis, (m/s^2)^2 */
@@ -92,5 +96,9 @@ ekf_status_t radar_update_radar(radar_ekf_t *f, const ekf_scalar_t z[RADAR_M], r
 
 /* Fuses a lidar position z = (px, py), m. Returns as radar_update_radar (no SINGULAR). */
 ekf_status_t radar_update_lidar(radar_ekf_t *f, const ekf_scalar_t z[2], radar_report_t *rep);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* RADAR_H */

@@ -10,6 +10,10 @@
 
 #include "ekf.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* State layout: position (m) and velocity (m/s) in the sensor's Cartesian frame. */
 enum {
     RADAR_PX = 0,
@@ -57,5 +61,9 @@ void radar_gen_range_rate(const ekf_scalar_t x[RADAR_N], ekf_scalar_t inv_rho, e
  * inv_rho = 1 / sqrt(px^2 + py^2) (1/m), finite: the caller checks the range.
  */
 void radar_gen_h_jacobian(const ekf_scalar_t x[RADAR_N], ekf_scalar_t inv_rho, ekf_scalar_t hv[RADAR_GEN_H_NNZ]);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* RADAR_GEN_H */

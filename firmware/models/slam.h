@@ -43,6 +43,10 @@
 #include "ekf.h"
 #include "slam_gen.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* Landmark capacity. The generic core handles at most EKF_MAX_STATES (<= 255) states, so at
  * most (EKF_MAX_STATES - 3) / 2 landmarks. Override with -DSLAM_MAX_LANDMARKS=k. */
 #ifndef SLAM_MAX_LANDMARKS
@@ -155,5 +159,9 @@ ekf_status_t slam_get_landmark(const slam_ekf_t *f, uint8_t id, ekf_scalar_t m[2
 uint8_t slam_dim(const slam_ekf_t *f);                    /* n (0 for NULL) */
 const ekf_scalar_t *slam_state(const slam_ekf_t *f);      /* x[n] */
 const ekf_scalar_t *slam_covariance(const slam_ekf_t *f); /* P, n x n, row-major */
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* SLAM_H */

@@ -10,6 +10,10 @@
 
 #include "ekf.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* Pose entries of the state; landmark k (0-based slot) is at SLAM_POSE_N + 2k (x) and
  * SLAM_POSE_N + 2k + 1 (y). */
 enum { SLAM_X = 0, SLAM_Y = 1, SLAM_PSI = 2, SLAM_POSE_N = 3 };
@@ -62,5 +66,9 @@ void slam_gen_obs_jacobian(ekf_scalar_t dx, ekf_scalar_t dy, ekf_scalar_t inv_r,
  * gz = dm/d(rr, b) (2x2 row-major).
  */
 void slam_gen_landmark_init(const ekf_scalar_t pose[SLAM_POSE_N], ekf_scalar_t rr, ekf_scalar_t cb, ekf_scalar_t sb, ekf_scalar_t m[2], ekf_scalar_t gx[6], ekf_scalar_t gz[4]);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* SLAM_GEN_H */

@@ -37,6 +37,10 @@
 
 #include "hal.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 #define HAL_TARGET_LINE_MAX 1024
 
 typedef struct {
@@ -70,5 +74,9 @@ hal_status_t hal_target_close(hal_target_t *t);
 
 /* Malformed input rows plus output write failures since hal_target_open. */
 uint32_t hal_target_errors(const hal_target_t *t);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* HAL_TARGET_H */

@@ -11,6 +11,10 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* Bytes of the main stack ever used since reset (stack painting, startup.c). The stack
  * below the current stack pointer is painted at reset; this scans for the deepest word
  * that no longer holds the paint. */
@@ -49,5 +53,9 @@ void target_systick_start(void);
 void semihost_write0(const char *s);
 /* Fills buf with the command line given to QEMU (NUL-terminated); 0 on success. */
 int semihost_cmdline(char *buf, size_t len);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* TARGET_H */

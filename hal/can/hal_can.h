@@ -29,6 +29,10 @@
 
 #include "hal.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 #define HAL_CAN_RX_SLOTS 2        /* samples assembled concurrently */
 #define HAL_CAN_LATE_WINDOW 64    /* sequence numbers back that count as late, not a restart */
 #define HAL_CAN_READY_MAX 4       /* completed samples waiting for hal_can_rx_pop */
@@ -113,5 +117,9 @@ size_t hal_can_encode_sample(const hal_sample_t *s, hal_can_frame_t frames[HAL_C
 /* Decodes one output frame into *out (fields of that frame only; others untouched).
  * Returns 1 if the id is an output frame of the protocol with the right length, else 0. */
 int hal_can_decode_output(const hal_can_frame_t *frame, hal_output_t *out);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* HAL_CAN_H */

@@ -29,6 +29,10 @@
 
 #include <stdint.h>
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* ------------------------------------------------------------------------------------ */
 /* Results                                                                               */
 /* ------------------------------------------------------------------------------------ */
@@ -229,5 +233,9 @@ static inline void hal_report(const hal_t *h, hal_level_t level, hal_event_t eve
 
 /* 1 if the table has the mandatory operations (now_us, read_sample, publish), else 0. */
 int hal_valid(const hal_t *h);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* HAL_H */

@@ -22,6 +22,10 @@
 #include "hal.h"
 #include "hal_can.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 #define HAL_SOCKETCAN_IFNAME_MAX 16 /* IFNAMSIZ, with the terminating NUL */
 #define HAL_SOCKETCAN_BATCH 32      /* frames read per system call (recvmmsg) */
 
@@ -79,5 +83,9 @@ struct can_frame;
 struct msghdr;
 int hal_socketcan_rx_msg(hal_socketcan_t *c, const struct can_frame *cf, size_t msg_len,
                          struct msghdr *msg, int64_t mono_minus_real);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* HAL_SOCKETCAN_H */

@@ -29,6 +29,10 @@
 #include "hal.h"
 #include "hal_can.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* Called with every output (and, if set, with each frame it encodes to). */
 typedef void (*hal_virtual_output_fn)(void *user, const hal_output_t *out);
 typedef void (*hal_virtual_frame_fn)(void *user, const hal_can_frame_t *frame);
@@ -91,5 +95,9 @@ void hal_virtual_set_clock(hal_virtual_t *v, uint64_t t_us);
 
 /* The simulated clock, us. */
 uint64_t hal_virtual_now_us(const hal_virtual_t *v);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* HAL_VIRTUAL_H */

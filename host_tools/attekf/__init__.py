@@ -1,3 +1,23 @@
-"""Host tools for the attitude EKF (simulate, replay, record, evaluate, benchmark)."""
+"""attekf: an attitude EKF for microcontrollers, and its host tools.
+
+The estimator (the same C code as on the target, loaded from the package's libraries):
+
+    import attekf
+    f = attekf.Filter()                              # settings=None, scalar="float"
+    est = f.update(gyr, acc, mag, dt=0.01)           # rad/s, m/s^2, uT, s
+    est.quaternion, est.euler, est.sigma, est.flags  # [w x y z] body->ENU; rad; rad; Flag
+
+    res = attekf.estimate(gyr, acc, mag, rate_hz=100.0)   # (N, 3) arrays, one C call
+
+help(attekf.Filter), help(attekf.Estimate) and help(attekf.filter) explain units and frames;
+attekf.setting_info() lists the settings with their units. The command-line tools are
+`attekf sim | eval | replay | record | bench` (attekf --help).
+"""
+
+from .filter import (Estimate, Filter, Flag, NativeError, Result, SettingsError, default_settings,
+                     estimate, setting_info)
 
 __version__ = "0.1.0"
+
+__all__ = ["Filter", "Estimate", "estimate", "Result", "Flag", "default_settings", "setting_info",
+           "SettingsError", "NativeError", "__version__"]

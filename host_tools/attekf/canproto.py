@@ -64,9 +64,11 @@ class ProtocolError(Exception):
 
 
 def dbc_path() -> Path:
-    """The DBC: $ATTEKF_DBC if set, else hal/can/attekf.dbc of this source tree."""
+    """The DBC: $ATTEKF_DBC if set, else the installed package's copy (attekf/data/), else
+    hal/can/attekf.dbc of this source tree."""
     env = os.environ.get("ATTEKF_DBC")
-    p = Path(env) if env else REPO_ROOT / DBC_RELPATH
+    packaged = Path(__file__).resolve().parent / "data" / "attekf.dbc"
+    p = Path(env) if env else packaged if packaged.is_file() else REPO_ROOT / DBC_RELPATH
     if not p.is_file():
         raise ProtocolError(f"{p}: CAN database not found (set ATTEKF_DBC to hal/can/attekf.dbc "
                             "of the attekf source tree)")

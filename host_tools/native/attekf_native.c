@@ -182,7 +182,9 @@ int attekf_filter_init(att_ekf_t *f, const att_settings_t *s) { return (int)att_
 const char *attekf_status_name(int status) { return ekf_status_str((ekf_status_t)status); }
 
 /* ------------------------------------------------------------------------------------
- * Diagnostic counters
+ * Diagnostics: the uint32 counters and the other fields of att_diag_t (ekf_scalar_t,
+ * arrays element by element), each table in declaration order, which
+ * attekf_diag_table_complete() relies on.
  * ------------------------------------------------------------------------------------ */
 typedef struct {
     const char *name;
@@ -196,9 +198,31 @@ static const diag_row_t k_diag[] = {
     DIAG_ROW(mag_fused),   DIAG_ROW(gyro_gated),    DIAG_ROW(accel_gated),
     DIAG_ROW(mag_gated),   DIAG_ROW(accel_skipped), DIAG_ROW(mag_skipped),
     DIAG_ROW(rejected),    DIAG_ROW(numeric),       DIAG_ROW(remaps),
+    DIAG_ROW(cov_repairs), DIAG_ROW(heading_resets), DIAG_ROW(gyro_saturated),
 };
 
 #define N_DIAG (sizeof k_diag / sizeof k_diag[0])
+
+typedef struct {
+    const char *name;
+    size_t offset;
+    size_t len; /* elements (ekf_scalar_t) */
+    const char *unit;
+} diag_value_row_t;
+
+#define DIAG_VALUE_ROW(field, unit) \
+    { #field, offsetof(att_diag_t, field), sizeof(((att_diag_t *)0)->field) / sizeof(ekf_scalar_t), unit }
+
+static const diag_value_row_t k_diag_values[] = {
+    DIAG_VALUE_ROW(gyro_ratio, "1"),
+    DIAG_VALUE_ROW(accel_ratio, "1"),
+    DIAG_VALUE_ROW(mag_ratio, "1"),
+    DIAG_VALUE_ROW(accel_norm_error, "m/s^2"),
+    DIAG_VALUE_ROW(mag_norm_error, "1"),
+    DIAG_VALUE_ROW(mag_dip_error, "rad"),
+};
+
+#define N_DIAG_VALUES (sizeof k_diag_values / sizeof k_diag_values[0])
 
 size_t attekf_diag_count(void) { return N_DIAG; }
 const char *attekf_diag_name(size_t i) { return (i < N_DIAG) ? k_diag[i].name : NULL; }
@@ -214,6 +238,48 @@ void attekf_diag_get(const att_ekf_t *f, uint32_t *out)
     for (i = 0; i < N_DIAG; ++i) {
         memcpy(&out[i], base + k_diag[i].offset, sizeof out[i]);
     }
+}
+
+size_t attekf_diag_value_count(void) { return N_DIAG_VALUES; }
+const char *attekf_diag_value_name(size_t i) { return (i < N_DIAG_VALUES) ? k_diag_values[i].name : NULL; }
+const char *attekf_diag_value_unit(size_t i) { return (i < N_DIAG_VALUES) ? k_diag_values[i].unit : NULL; }
+size_t attekf_diag_value_len(size_t i) { return (i < N_DIAG_VALUES) ? k_diag_values[i].len : 0u; }
+
+void attekf_diag_values_get(const att_ekf_t *f, double *out)
+{
+    size_t i, k, n = 0;
+    const unsigned char *base;
+    if (f == NULL || out == NULL) {
+        return;
+    }
+    base = (const unsigned char *)att_diag(f);
+    for (i = 0; i < N_DIAG_VALUES; ++i) {
+        for (k = 0; k < k_diag_values[i].len; ++k) {
+            ekf_scalar_t v;
+            memcpy(&v, base + k_diag_values[i].offset + k * sizeof v, sizeof v);
+            out[n++] = ekf_to_double(v);
+        }
+    }
+}
+
+int attekf_diag_table_complete(void)
+{
+    size_t i;
+    size_t end = 0; /* first byte after the previous field */
+    for (i = 0; i < N_DIAG; ++i) {
+        if (k_diag[i].offset != end) {
+            return 0; /* a counter missing (uint32 fields pack without padding) */
+        }
+        end += sizeof(uint32_t);
+    }
+    for (i = 0; i < N_DIAG_VALUES; ++i) {
+        /* alignment padding before a field is smaller than the field's element */
+        if (k_diag_values[i].offset < end || k_diag_values[i].offset - end >= sizeof(ekf_scalar_t)) {
+            return 0;
+        }
+        end = k_diag_values[i].offset + k_diag_values[i].len * sizeof(ekf_scalar_t);
+    }
+    return (sizeof(att_diag_t) >= end && sizeof(att_diag_t) - end < sizeof(ekf_scalar_t)) ? 1 : 0;
 }
 
 /* ------------------------------------------------------------------------------------

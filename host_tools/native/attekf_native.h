@@ -1,12 +1,12 @@
 /*
  * attekf_native.h - the C estimator (firmware/att) packaged for the host tools.
  *
- * Built as a shared library per scalar type (libattekf_native_f.so, _d.so) and loaded by
+ * Built as a shared library per scalar type (libattekf_native_f.so, _d.so, _x.so) and loaded by
  * host_tools/attekf/native.py through ctypes. Everything Python needs is reachable by
  * function call, so Python never mirrors a C struct layout:
  *   - sizes of the settings and filter structs (Python allocates opaque buffers);
  *   - the settings by name (a table name -> offset/type in attekf_native.c);
- *   - the names of the status codes and of the diagnostic counters;
+ *   - the names of the status codes and of the diagnostics;
  *   - attekf_run(): att_step over a block of samples in one call, every per-sample output
  *     written to caller-owned arrays (double precision whatever the scalar type).
  *
@@ -21,8 +21,12 @@
 
 #include "att.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* Bumped whenever a signature below changes; native.py refuses other versions. */
-#define ATTEKF_NATIVE_API_VERSION 1
+#define ATTEKF_NATIVE_API_VERSION 2
 
 /* Per-sample status columns written by attekf_run (status[i * ATTEKF_STATUS_COLS + k]). */
 enum {
@@ -84,6 +88,18 @@ size_t attekf_diag_count(void);
 const char *attekf_diag_name(size_t i);
 /* Writes the attekf_diag_count() counters of f into out. */
 void attekf_diag_get(const att_ekf_t *f, uint32_t *out);
+/* The other fields of att_diag_t (innovation test ratios, norm and dip errors) by index:
+ * name, unit, number of elements (3 for an array of three). */
+size_t attekf_diag_value_count(void);
+const char *attekf_diag_value_name(size_t i);
+const char *attekf_diag_value_unit(size_t i);
+size_t attekf_diag_value_len(size_t i);
+/* Writes every element of every value field of f, in table order, into out (as many
+ * doubles as the sum of attekf_diag_value_len). */
+void attekf_diag_values_get(const att_ekf_t *f, double *out);
+/* 1 if the counter and value tables together tile att_diag_t (no field left out, up to
+ * alignment padding), else 0: catches a diagnostic added to att.h but not to a table. */
+int attekf_diag_table_complete(void);
 
 /*
  * Runs att_step on n samples, in order, continuing from the filter's current state.
@@ -106,5 +122,9 @@ void attekf_diag_get(const att_ekf_t *f, uint32_t *out);
 int attekf_run(att_ekf_t *f, size_t n, const double *dt, const double *gyr, const double *acc,
                const double *mag, double *state, double *var, double *quat, uint32_t *flags,
                uint8_t *status);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* ATTEKF_NATIVE_H */

@@ -166,6 +166,11 @@ def sparse_entries(matrix: sp.Matrix) -> List[Tuple[int, int, sp.Expr]]:
     return out
 
 
+# C linkage for C++ users of the generated headers (the pattern of every public header).
+CPP_OPEN = '#ifdef __cplusplus\nextern "C" {\n#endif\n'
+CPP_CLOSE = '#ifdef __cplusplus\n}\n#endif\n'
+
+
 def render_files(
     stem: str,
     title: str,
@@ -186,9 +191,9 @@ def render_files(
     inc = "\n".join(f'#include "{i}"' for i in includes)
     header = (
         f"{banner}#ifndef {guard}\n#define {guard}\n\n{inc}\n\n"
-        f"{header_extra.strip()}\n\n"
+        f"{CPP_OPEN}\n{header_extra.strip()}\n\n"
         + "\n\n".join(f.prototype() for f in functions)
-        + f"\n\n#endif /* {guard} */\n"
+        + f"\n\n{CPP_CLOSE}\n#endif /* {guard} */\n"
     )
     source = (
         f'{banner}#include "{stem}.h"\n\n'
