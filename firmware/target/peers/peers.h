@@ -5,7 +5,7 @@
  *
  * The peers' sources are not part of this repository: the benchmark downloads them (Fusion
  * from the imufusion source distribution, VQF and BasicVQF from the vqf one, versions and
- * SHA-256 pinned in scripts/peers.py) into the build tree and builds them with the flags of
+ * SHA-256 pinned in scripts/bench_peers.py) into the build tree and builds them with the flags of
  * the board. This glue calls their public APIs only; VQF in single precision
  * (VQF_SINGLE_PRECISION), each with its authors' default parameters (Fusion: the settings
  * of x-io's examples, as in attekf bench).
