@@ -175,7 +175,7 @@ def report(args, results, peers):
     print("Instructions per full update (gyroscope + accelerometer + magnetometer; ours: `att_step`, "
           "predict and the three updates) on the same samples (bench.c's, after the alignment), "
           "min / mean / max; host x86-64: callgrind instructions per sample (RelWithDebInfo, gcc); "
-          "`x` is attekf's mean over the peer's.\n")
+          "`attekf / it`: attekf's mean over the peer's.\n")
     print("| filter | " + " | ".join(f"{c} | attekf / it" for c in cols) + " |")
     print("|---|" + "---|---|" * len(cols))
     ours = {p: results[p]["bench"]["insns"]["step"]["mean"] for p in presets}
