@@ -218,11 +218,11 @@ void ekf_sincosf(float x, float *s, float *c)
 /* ---- atan2 ---------------------------------------------------------------------------- */
 
 #define PI_HI 3.141592741e+00f     /* float(pi) */
-#define PI_LO -8.742277657e-08f    /* pi - PI_HI */
+#define PI_LO (-8.742277657e-08f) /* pi - PI_HI */
 #define PIO2_HI 1.570796371e+00f
-#define PIO2_LO -4.371138829e-08f
+#define PIO2_LO (-4.371138829e-08f)
 #define PIO4_HI 7.853981853e-01f
-#define PIO4_LO -2.185569414e-08f
+#define PIO4_LO (-2.185569414e-08f)
 #define TAN_PI_8 4.142135680e-01f
 
 /* atan(t) - t for |t| <= tan(pi/8) */
