@@ -10,7 +10,7 @@
  * float operations (pi/2 in three parts, the products exact), and a larger one by the same
  * method as the C library's, but small: the argument's 24-bit significand times 96 bits of
  * 2/pi in 32-bit integer arithmetic. Every finite argument thus gets a correct result; the
- * large path is only slower (about 3 times), never less accurate than stated.
+ * large path is only slower, never less accurate than stated.
  *
  * Error bounds, in units in the last place of the float result (ULP), measured against a
  * double-precision reference (tests/c/test_ekf_math.c checks them on every run; the
