@@ -14,10 +14,15 @@ For each cross build (presets cortex-m4f and cortex-m3 of CMakePresets.json, -Os
      undefined symbols through the archives;
   4. lists the largest stack frames of the estimator's functions (-fstack-usage).
 
+With --peers, the same run also measures the peers' filters on the same boards and samples
+(scripts/peers.py downloads their pinned sources; firmware/target/peers/): instructions per
+full update, flash, RAM and stack of Fusion, VQF and BasicVQF next to att_step's, and on the
+host the instructions per sample under callgrind (valgrind), with the ratios.
+
 Prints Markdown tables (the ones recorded in docs/performance.md) with the commit measured.
 
     scripts/bench_firmware.py [--presets cortex-m4f cortex-m3] [--samples 3000]
-                              [--build-type MinSizeRel] [--quiet]
+                              [--build-type MinSizeRel] [--peers] [--quiet]
 """
 import argparse
 import collections
@@ -26,6 +31,8 @@ import os
 import re
 import subprocess
 import sys
+
+import bench_peers
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 RUNNER = os.path.join(ROOT, "firmware", "target", "qemu_run.sh")
@@ -173,7 +180,13 @@ def archive_symbols(archive, cwd):
 
 
 def footprint(args, preset, bdir):
-    elf = os.path.join(bdir, "firmware", "target", "attekf_footprint.elf")
+    return footprint_of(os.path.join(bdir, "firmware", "target", "attekf_footprint.elf"), f"lib{core_lib(preset)}.a",
+                        bdir)
+
+
+def footprint_of(elf, libname, bdir):
+    """Flash/RAM of the objects of static library libname in image elf and of every library
+    member they pull in (followed through undefined symbols), grouped; and the image's size."""
     sizes = parse_map(elf + ".map")
     # archives the image took members from, and the symbols of every member
     archives = sorted({MEMBER.match(s).group(1) for s in sizes if MEMBER.match(s)})
@@ -185,8 +198,7 @@ def footprint(args, preset, bdir):
             undef[key] = u
             for s in d:
                 defs.setdefault(s, key)
-    # closure from the estimator library's objects through undefined symbols
-    libname = f"lib{core_lib(preset)}.a"
+    # closure from the library's objects through undefined symbols
     lib = [s for s in sizes if MEMBER.match(s) and os.path.basename(MEMBER.match(s).group(1)) == libname]
     seen = set(lib)
     todo = list(lib)
@@ -201,7 +213,7 @@ def footprint(args, preset, bdir):
     for key in sorted(seen):
         m = MEMBER.match(key)
         name = os.path.basename(m.group(1))
-        group = f"estimator: {m.group(2).replace('.c.obj', '.c')}" if name == libname else name
+        group = f"estimator: {re.sub(r'[.]obj$', '', m.group(2))}" if name == libname else name
         groups.setdefault(group, collections.Counter()).update(sizes[key])
     size_out = run(["arm-none-eabi-size", elf]).splitlines()[1].split()
     return {"groups": groups, "image": {"text": int(size_out[0]), "data": int(size_out[1]), "bss": int(size_out[2])},
@@ -235,7 +247,8 @@ def verdict(value, limit):
 
 
 def report(args, results):
-    print(f"Measured at {commit()}, `scripts/bench_firmware.py --samples {args.samples}` "
+    print(f"Measured at {commit()}, `scripts/bench_firmware.py --samples {args.samples}"
+          f"{' --peers' if args.peers else ''}` "
           f"(build type {args.build_type}, arm-none-eabi-gcc, QEMU -icount shift=8).\n")
     print("### Instructions per call\n")
     print("Executed instructions (not cycles) over the benchmark's samples after the alignment "
@@ -311,6 +324,9 @@ def main():
     ap.add_argument("--build-root", default=None,
                     help="build in DIR/<preset>-<build type> instead of the presets' build/<preset> "
                          "(a private tree while others use build/)")
+    ap.add_argument("--peers", action="store_true",
+                    help="also measure Fusion, VQF and BasicVQF (downloaded, pinned) on the same boards and "
+                         "on the host (callgrind), side by side with the ratios")
     ap.add_argument("--quiet", action="store_true", help="no progress messages on stderr")
     args = ap.parse_args()
     if not 20 <= args.samples <= 1000000:
@@ -321,7 +337,9 @@ def main():
             bdir = ensure_built(args, preset)
             results[preset] = {"bench": run_bench(args, preset, bdir), "fp": footprint(args, preset, bdir),
                                "frames": stack_frames(bdir, lib=core_lib(preset))}
-    except BenchError as e:
+        if args.peers:
+            peer_results = bench_peers.measure(args, results, sys.modules[__name__])
+    except (BenchError, bench_peers.PeerError) as e:
         print(f"bench_firmware: {e}", file=sys.stderr)
         return 1
     except FileNotFoundError as e:
@@ -329,6 +347,8 @@ def main():
               file=sys.stderr)
         return 1
     report(args, results)
+    if args.peers:
+        bench_peers.report(args, results, peer_results)
     return 0
 
 

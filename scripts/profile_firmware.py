@@ -7,6 +7,9 @@ trace and the image's disassembly, and prints, for everything executed inside at
 the instructions per step of each function: inclusive (with its callees) and self.
 
     scripts/profile_firmware.py [--build build/cortex-m4f] [--samples 20] [--top 30]
+    scripts/profile_firmware.py --build build/peers-cortex-m4f \
+        --image build/peers-cortex-m4f/firmware/target/peers/attekf_peers_bench.elf \
+        --args VQF --root _ZN3VQF6updateEPKfS1_S1_ --require _ZN3VQF9updateAccEPKf
 
 Needs a configured and built cross build (cmake --preset cortex-m4f && cmake --build
 --preset cortex-m4f). The trace of 20 samples is about 300 MB in a temporary directory.
@@ -85,6 +88,9 @@ def profile(trace, entries, calls, root, require):
                         stack.pop()
                 elif at_entry:  # tail call (b <fn>): the callee replaces the caller
                     stack[-1] = fn
+                    if fn == root and cur is None:  # root entered by a tail call
+                        cur = {"incl": collections.Counter(), "self": collections.Counter(),
+                               "calls": collections.Counter()}
                     if cur is not None:
                         cur["calls"][fn] += 1
                 else:
@@ -115,10 +121,15 @@ def main():
                     help="count only root calls that called this function (default: the "
                          "steps after the alignment, which run the prediction)")
     ap.add_argument("--top", type=int, default=30, help="functions listed (default 30)")
+    ap.add_argument("--image", default=None,
+                    help="image to trace instead of the build's attekf_bench.elf, e.g. the peers' "
+                         "firmware/target/peers/attekf_peers_bench.elf (with --root, --require, --args)")
+    ap.add_argument("--args", nargs="*", default=None,
+                    help="arguments of the image after the sample count (e.g. VQF for the peers' image)")
     ap.add_argument("--quiet", action="store_true", help="print only the table")
     args = ap.parse_args()
 
-    elf = os.path.join(args.build, "firmware", "target", "attekf_bench.elf")
+    elf = args.image or os.path.join(args.build, "firmware", "target", "attekf_bench.elf")
     if not os.path.isfile(elf):
         sys.exit(f"profile_firmware: no benchmark image {elf}: configure and build the cross build first")
     if args.samples < 20:
@@ -130,7 +141,7 @@ def main():
         if not args.quiet:
             print(f"profile_firmware: tracing {args.samples} samples of {os.path.relpath(elf, ROOT)}", file=sys.stderr)
         run = subprocess.run([runner, "--machine", machine_of(args.build), "--icount", "8", "--trace", trace,
-                              elf, str(args.samples)], capture_output=True, text=True)
+                              elf, str(args.samples)] + (args.args or []), capture_output=True, text=True)
         if run.returncode != 0:
             sys.exit(f"profile_firmware: benchmark failed (exit {run.returncode}):\n{run.stdout}{run.stderr}")
         total, steps = profile(trace, entries, calls, args.root, args.require)

@@ -26,6 +26,7 @@ log() { printf '[setup] %s\n' "$*"; }
 APT_PACKAGES=(
   build-essential cmake ninja-build git pkgconf python3 python3-venv python3-pip
   gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm
+  libstdc++-arm-none-eabi-newlib
   user-mode-linux kmod iproute2 can-utils
   clang libclang-rt-14-dev lld cppcheck clang-tidy valgrind
 )

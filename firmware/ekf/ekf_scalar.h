@@ -45,15 +45,16 @@ static inline float ekf_to_float(ekf_scalar_t a) { return (float)a; }
 
 #elif defined(EKF_SCALAR_FLOAT)
 
+#include "ekf_math.h" /* sin, cos, atan2, sqrt with stated bounds, no libm range reduction */
 typedef float ekf_scalar_t;
 #define EKF_SCALAR_NAME "float"
 #define EKF_C(x) ((ekf_scalar_t)(x))
 #define EKF_SCALAR_EPS EKF_C(1.1920929e-07)
 
-static inline ekf_scalar_t ekf_sqrt(ekf_scalar_t a) { return sqrtf(a); }
-static inline ekf_scalar_t ekf_sin(ekf_scalar_t a) { return sinf(a); }
-static inline ekf_scalar_t ekf_cos(ekf_scalar_t a) { return cosf(a); }
-static inline ekf_scalar_t ekf_atan2(ekf_scalar_t y, ekf_scalar_t x) { return atan2f(y, x); }
+static inline ekf_scalar_t ekf_sqrt(ekf_scalar_t a) { return ekf_sqrtf(a); }
+static inline ekf_scalar_t ekf_sin(ekf_scalar_t a) { return ekf_sinf(a); }
+static inline ekf_scalar_t ekf_cos(ekf_scalar_t a) { return ekf_cosf(a); }
+static inline ekf_scalar_t ekf_atan2(ekf_scalar_t y, ekf_scalar_t x) { return ekf_atan2f(y, x); }
 static inline ekf_scalar_t ekf_abs(ekf_scalar_t a) { return fabsf(a); }
 static inline ekf_scalar_t ekf_floor(ekf_scalar_t a) { return floorf(a); }
 static inline ekf_scalar_t ekf_from_float(float a) { return a; }
