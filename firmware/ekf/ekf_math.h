@@ -39,6 +39,10 @@
 
 #include <math.h>
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* sin(x) and cos(x), x in rad. */
 float ekf_sinf(float x);
 float ekf_cosf(float x);
@@ -62,5 +66,9 @@ static inline float ekf_sqrtf(float a)
     return sqrtf(a);
 #endif
 }
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* EKF_MATH_H */
