@@ -47,8 +47,10 @@ rm -f "$OUT"/node.ready "$OUT"/record.ready "$OUT"/replay.started
 "$NODE" -i "$IFACE" --ready-file "$OUT/node.ready" --stats "$OUT/node.json" "${NODE_ARGS[@]}" \
   > "$OUT/node.log" 2>&1 &
 NODE_PID=$!
+# --idle: the recorder stops by itself once the bus has been quiet for 2 s after the node
+# stopped, so it keeps what it had not read yet when it runs slower than the bus (emulation).
 "$PY" -m attekf record -q -i socketcan -c "$IFACE" -o "$OUT/bus.log" --stats "$OUT/record.json" \
-  --ready-file "$OUT/record.ready" > "$OUT/record.log" 2>&1 &
+  --ready-file "$OUT/record.ready" --idle 2 > "$OUT/record.log" 2>&1 &
 REC_PID=$!
 
 # Wait (at most 60 s: Python imports are slow under UML) until both listen.
@@ -89,8 +91,10 @@ REPLAY_RC=$?
 [ -n "$BOUNCE_PID" ] && wait "$BOUNCE_PID"
 
 sleep 0.5   # the outputs of the last samples
-kill -TERM "$NODE_PID"; kill -INT "$REC_PID"
+kill -TERM "$NODE_PID"
 wait "$NODE_PID"; NODE_RC=$?
+for _ in $(seq 1 1200); do kill -0 "$REC_PID" 2>/dev/null || break; sleep 0.1; done
+kill -INT "$REC_PID" 2>/dev/null
 wait "$REC_PID"; REC_RC=$?
 ifstats end
 echo "replay=$REPLAY_RC node=$NODE_RC record=$REC_RC" > "$OUT/status"
