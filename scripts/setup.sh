@@ -44,6 +44,27 @@ else
   log "Debian packages present"
 fi
 
+# --- vcan hardware-in-loop backends (docs/hil.md) -----------------------------------------
+# QEMU is the HIL's fallback where neither this kernel nor user-mode Linux can run vcan: it
+# needs qemu-system-x86 and a static busybox, and boots Debian's linux-image-amd64 kernel,
+# fetched with apt-get download and unpacked into the project's cache (~/.cache/attekf, or
+# $ATTEKF_CACHE_DIR), not installed on this machine.
+HIL_PACKAGES=(qemu-system-x86 busybox-static)
+hil_missing=()
+for p in "${HIL_PACKAGES[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed' || hil_missing+=("$p")
+done
+if ((${#hil_missing[@]})); then
+  SUDO=""
+  if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+  log "installing Debian packages for the HIL's QEMU backend: ${hil_missing[*]}"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${hil_missing[@]}" >/dev/null
+fi
+hil_kernel="$(python3 "$ROOT/hal/tools/vcan_run.py" --prepare)" \
+  || { echo "[setup] cannot fetch the HIL's QEMU guest kernel (above)" >&2; exit 1; }
+log "HIL: ${hil_kernel#vcan_run: }"
+
 # --- Python virtual environment -------------------------------------------------------
 # The interpreter is the machine's python3 (3.11 here); everything else is pinned.
 VENV="$ROOT/.venv"

@@ -13,9 +13,9 @@ stops the node and reads its counters. A rate is *sustained* when
 
 It runs a ladder of rates, then bisects between the highest sustained and the lowest failed one,
 and prints a table and the highest sustained rate. Where the kernel has no CAN the whole run
-happens inside one user-mode Linux guest (hal/tools/vcan_run.py): there the node, the sender
-and the kernel share ONE virtual CPU and every system call is expensive, so the figure is a
-lower bound for real hardware.
+happens inside one guest of hal/tools/vcan_run.py (user-mode Linux, or QEMU): there the node,
+the sender and the kernel share ONE virtual CPU and every system call is expensive (under QEMU
+without KVM every instruction is emulated), so the figure is a lower bound for real hardware.
 
     hal/tools/can_throughput.py                    # default ladder, 5 s per rate
     hal/tools/can_throughput.py --rates 10000,20000 --duration 10 --json out.json
@@ -133,8 +133,8 @@ def main(argv: Optional[List[str]] = None) -> int:
     ap.add_argument("--node", default=os.environ.get("ATTEKF_NODE", str(DEFAULT_NODE)))
     ap.add_argument("--blast", default=str(DEFAULT_BLAST))
     ap.add_argument("--iface", default="vcan0")
-    ap.add_argument("--mode", choices=("auto", "host", "uml"), default="auto",
-                    help="where vcan0 comes from (hal/tools/vcan_run.py)")
+    ap.add_argument("--mode", choices=("auto", "host", "uml", "qemu", "qemu-kvm", "qemu-tcg"), default="auto",
+                    help="where vcan0 comes from (hal/tools/vcan_run.py backends)")
     ap.add_argument("--json", metavar="FILE", help="write every result as JSON")
     ap.add_argument("--inside", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--work", default="", help=argparse.SUPPRESS)

@@ -11,18 +11,20 @@
 #        replay.json  what was sent and what failed (attekf replay --stats)
 #        bounce.log   when the interface went down/up (with --bounce: AFTER_S after the first
 #                     frame of the replay, for DOWN_S)
+#        ifstats.txt  the interface's kernel statistics before the replay and at the end
+#                     (rx_dropped counts frames the kernel dropped, e.g. sent as it went down)
 #
 #   hal/tools/hil_scenario.sh OUTDIR IFACE INPUT [--speed X] [--bounce AFTER_S,DOWN_S]
 #                             [--node-arg ARG]...
 #
-# Runs wherever IFACE exists: a real can0, a vcan0 on a kernel with CAN, or inside user-mode
-# Linux (hal/tools/vcan_run.py). Environment: ATTEKF_NODE (node binary, default
+# Runs wherever IFACE exists: a real can0, a vcan0 on a kernel with CAN, or inside a guest of
+# hal/tools/vcan_run.py (user-mode Linux or QEMU). Environment: ATTEKF_NODE (node binary, default
 # build/host/firmware/app/attekf-node), ATTEKF_PYTHON (interpreter with the attekf package,
 # default .venv/bin/python). Exit status: 0 if every step ran (the checks are the tests' job),
 # 1 if a step failed (its log says why), 2 usage.
 set -u
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
-usage() { sed -n '2,21p' "$0"; exit 2; }
+usage() { sed -n '2,24p' "$0"; exit 2; }
 [ $# -ge 3 ] || usage
 OUT="$1"; IFACE="$2"; INPUT="$3"; shift 3
 SPEED=1; BOUNCE=""; NODE_ARGS=()
@@ -45,8 +47,10 @@ rm -f "$OUT"/node.ready "$OUT"/record.ready "$OUT"/replay.started
 "$NODE" -i "$IFACE" --ready-file "$OUT/node.ready" --stats "$OUT/node.json" "${NODE_ARGS[@]}" \
   > "$OUT/node.log" 2>&1 &
 NODE_PID=$!
+# --idle: the recorder stops by itself once the bus has been quiet for 2 s after the node
+# stopped, so it keeps what it had not read yet when it runs slower than the bus (emulation).
 "$PY" -m attekf record -q -i socketcan -c "$IFACE" -o "$OUT/bus.log" --stats "$OUT/record.json" \
-  --ready-file "$OUT/record.ready" > "$OUT/record.log" 2>&1 &
+  --ready-file "$OUT/record.ready" --idle 2 > "$OUT/record.log" 2>&1 &
 REC_PID=$!
 
 # Wait (at most 60 s: Python imports are slow under UML) until both listen.
@@ -61,6 +65,16 @@ if ! [ -f "$OUT/node.ready" ] || ! [ -f "$OUT/record.ready" ]; then
   kill "$NODE_PID" "$REC_PID" 2>/dev/null; wait
   exit 1
 fi
+
+ifstats() {   # one line: LABEL key=value ... from /sys/class/net/IFACE/statistics
+  local line="$1" k
+  for k in rx_packets rx_dropped tx_packets tx_dropped; do
+    line="$line $k=$(cat "/sys/class/net/$IFACE/statistics/$k" 2>/dev/null || echo NA)"
+  done
+  echo "$line" >> "$OUT/ifstats.txt"
+}
+rm -f "$OUT/ifstats.txt"
+ifstats start
 
 BOUNCE_PID=""
 if [ -n "$BOUNCE" ]; then
@@ -77,8 +91,11 @@ REPLAY_RC=$?
 [ -n "$BOUNCE_PID" ] && wait "$BOUNCE_PID"
 
 sleep 0.5   # the outputs of the last samples
-kill -TERM "$NODE_PID"; kill -INT "$REC_PID"
+kill -TERM "$NODE_PID"
 wait "$NODE_PID"; NODE_RC=$?
+for _ in $(seq 1 1200); do kill -0 "$REC_PID" 2>/dev/null || break; sleep 0.1; done
+kill -INT "$REC_PID" 2>/dev/null
 wait "$REC_PID"; REC_RC=$?
+ifstats end
 echo "replay=$REPLAY_RC node=$NODE_RC record=$REC_RC" > "$OUT/status"
 [ "$REPLAY_RC" -eq 0 ] && [ "$NODE_RC" -eq 0 ] && [ "$REC_RC" -eq 0 ]

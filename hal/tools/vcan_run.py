@@ -1,95 +1,103 @@
 #!/usr/bin/env python3
 """Run a command on a machine with a virtual CAN interface (vcan0) up, and return its output
-and exit status.
+and exit status, whatever CAN support this machine's kernel and CPU have (docs/hil.md).
 
-Where the running kernel has CAN (``socket(PF_CAN)`` works), the command runs directly, after
-creating the interfaces if they are missing (root). Where it has not (these build machines),
-the command runs inside user-mode Linux: Debian's ``linux.uml`` boots with the host's ``/`` as
-its root file system (hostfs) in about 2 s, loads the ``can``, ``can-raw``, ``can-bcm``,
-``can-dev`` and ``vcan`` modules shipped with it, creates the interfaces and runs the command in
-the current directory with the current environment. The command's stdout, stderr and exit status
-travel back through files on the shared file system (the UML console mixes in kernel messages,
-and ``linux.uml`` itself exits 0 whatever happens inside). No TTY is needed (CI has no stdin).
+Backends, tried in this order by mode auto:
+
+  host      this kernel's CAN (``socket(PF_CAN)`` works): the command runs directly, after
+            the interfaces are created if missing (root)
+  uml       user-mode Linux (vcan_uml.py): Debian's ``linux.uml`` with the host's ``/`` as its
+            root; on CPUs whose XSAVE area UML < 6.13 cannot handle (AMX) with the ptrace
+            XSTATE wrapper of uml_xstate/, and one retry with it after a boot that failed with
+            ``ptrace set fp regs failed``
+  qemu-kvm  QEMU with KVM (vcan_qemu.py): Debian's kernel, the host's ``/`` over virtio-9p;
+            only where the CPU has vmx/svm and the guest prints within a few seconds
+  qemu-tcg  the same under emulation
+
+Each backend that cannot run the command logs one line with the root cause on stderr, and the
+next one is tried; a backend that failed is not tried again in the same process. The command
+runs in the current directory with the current environment; its stdout, stderr and exit status
+come back through files (no TTY needed; CI has no stdin).
 
 Command line::
 
-    hal/tools/vcan_run.py [--mode auto|host|uml] [--timeout S] [--iface vcan0 ...] -- CMD ARGS...
+    hal/tools/vcan_run.py [--mode auto|host|uml|qemu|qemu-kvm|qemu-tcg] [--timeout S]
+                          [--iface vcan0 ...] -- CMD ARGS...
     hal/tools/vcan_run.py --shell 'candump -n 1 vcan0 & cansend vcan0 123#00; wait'
+    hal/tools/vcan_run.py --backends        what each backend needs and whether it has it
+    hal/tools/vcan_run.py --prepare         fetch the QEMU guest kernel into the cache
 
-exits with the command's status (125 if the machine could not run it: no UML, boot failure,
-timeout), its stdout/stderr copied to ours. From Python: :func:`run`.
+exits with the command's status (125 if no backend could run it, with each backend's reason).
+$ATTEKF_VCAN_MODE forces a mode like --mode (qemu: KVM where usable, else TCG). From Python:
+:func:`run`.
 
-Standard library only (usable before the project's virtual environment exists). Guests booted in
-parallel get their own interfaces but share the host's files: every run uses its own temporary
-directory.
-"""
+Standard library only (usable before the project's virtual environment exists)."""
 
 from __future__ import annotations
 
 import argparse
-import errno
 import os
-import shlex
-import shutil
-import signal
 import socket
 import subprocess
 import sys
-import tempfile
 import time
-from dataclasses import dataclass
-from typing import Dict, List, Optional, Sequence, Union
+from typing import Dict, List, Optional, Sequence, Tuple, Union
 
-UML_KERNEL = "linux.uml"
-UML_MODULES = "/usr/lib/uml/modules"
-# Load order matters (dependencies); can-bcm is what python-can's send_periodic needs.
-UML_MODULE_FILES = ("net/can/can.ko", "net/can/can-raw.ko", "net/can/can-bcm.ko",
-                    "drivers/net/can/dev/can-dev.ko", "drivers/net/can/vcan.ko")
-EXIT_INFRA = 125          # could not run the command at all
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import vcan_guest  # noqa: E402
+import vcan_qemu  # noqa: E402
+import vcan_uml  # noqa: E402
+from vcan_guest import EXIT_INFRA, BackendError, Result, VcanError  # noqa: E402,F401
+
+BACKENDS = ("host", "uml", "qemu-kvm", "qemu-tcg")
+MODES = ("auto",) + BACKENDS + ("qemu",)
 DEFAULT_TIMEOUT_S = 300.0
 DEFAULT_MEM = "512M"
-# Environment variables not passed into the guest (meaningless or harmful there).
-_ENV_SKIP = {"TERM", "TERMCAP", "COLUMNS", "LINES", "SHLVL", "_", "OLDPWD", "PWD",
-             "SSH_AUTH_SOCK", "SSH_CONNECTION", "SSH_CLIENT", "SSH_TTY", "DISPLAY"}
+UML_KERNEL = vcan_uml.UML_KERNEL     # kept for callers of the previous single-file runner
+_failed: Dict[str, str] = {}         # backend -> why it failed in this process (auto skips it)
 
 
-class VcanError(RuntimeError):
-    """The command could not be run (no CAN here and no usable UML, boot failure, timeout)."""
+def _log(msg: str) -> None:
+    print(f"vcan_run: {msg}", file=sys.stderr, flush=True)
 
 
-@dataclass
-class Result:
-    returncode: int
-    stdout: str
-    stderr: str
-    mode: str            # "host" or "uml"
-    seconds: float       # wall time, boot included
-    console: str = ""    # UML console (kernel messages), for diagnosing boot problems
+def host_can_reason() -> Optional[str]:
+    """Why this kernel cannot do PF_CAN raw sockets, or None if it can."""
+    if not hasattr(socket, "AF_CAN"):
+        return "this Python has no AF_CAN"
+    try:
+        s = socket.socket(socket.AF_CAN, socket.SOCK_RAW, socket.CAN_RAW)
+    except OSError as e:
+        return f"this kernel has no CAN: socket(PF_CAN): {e}"
+    s.close()
+    return None
 
 
 def host_has_can() -> bool:
     """True if this kernel supports PF_CAN raw sockets."""
-    if not hasattr(socket, "AF_CAN"):
-        return False
-    try:
-        s = socket.socket(socket.AF_CAN, socket.SOCK_RAW, socket.CAN_RAW)
-    except OSError:
-        return False
-    s.close()
-    return True
+    return host_can_reason() is None
 
 
 def uml_available() -> Optional[str]:
     """Why UML cannot be used here, or None if it can."""
-    if shutil.which(UML_KERNEL) is None:
-        return f"{UML_KERNEL} not found (install the Debian package user-mode-linux)"
-    if not os.path.isdir(UML_MODULES) or not os.listdir(UML_MODULES):
-        return f"{UML_MODULES}: no UML kernel modules (package user-mode-linux)"
-    for tool in ("insmod", "ip"):
-        if shutil.which(tool) is None and not os.path.exists(f"/usr/sbin/{tool}") \
-                and not os.path.exists(f"/sbin/{tool}"):
-            return f"{tool} not found (packages kmod, iproute2)"
-    return None
+    return vcan_uml.available()
+
+
+def backend_status(ifaces: Sequence[str] = ("vcan0",)) -> Dict[str, Tuple[Optional[str], bool]]:
+    """For each backend: (why it cannot be used here, or None; whether it is expected to work
+    on a machine set up by scripts/setup.sh). Host CAN and KVM depend on the machine; UML and
+    QEMU/TCG are installed by the set-up. No guest is booted."""
+    host = host_can_reason()
+    if host is None and os.geteuid() != 0:
+        missing = [n for n in ifaces if not os.path.exists(f"/sys/class/net/{n}")]
+        if missing:
+            host = f"{', '.join(missing)} missing and not root (cannot create it)"
+    qemu = vcan_qemu.available()
+    kvm = qemu or vcan_qemu.kvm_usable()
+    return {"host": (host, False),
+            "uml": (vcan_uml.available(), True),
+            "qemu-kvm": (kvm, vcan_qemu.kvm_usable() is None),
+            "qemu-tcg": (qemu, True)}
 
 
 def _ensure_host_ifaces(ifaces: Sequence[str]) -> None:
@@ -99,117 +107,48 @@ def _ensure_host_ifaces(ifaces: Sequence[str]) -> None:
             r = subprocess.run(["ip", "link", "add", "dev", name, "type", "vcan"],
                                capture_output=True, text=True)
             if r.returncode != 0:
-                raise VcanError(f"cannot create {name}: {r.stderr.strip()} (needs root and the vcan module)")
+                raise BackendError("host", f"cannot create {name}: {r.stderr.strip()} "
+                                           "(needs root and the vcan module)")
         r = subprocess.run(["ip", "link", "set", "up", name], capture_output=True, text=True)
         if r.returncode != 0:
             with open(f"/sys/class/net/{name}/operstate") as fh:
                 if fh.read().strip() not in ("up", "unknown"):
-                    raise VcanError(f"cannot bring {name} up: {r.stderr.strip()}")
+                    raise BackendError("host", f"cannot bring {name} up: {r.stderr.strip()}")
 
 
-def _as_shell(cmd: Union[str, Sequence[str]]) -> str:
-    return cmd if isinstance(cmd, str) else " ".join(shlex.quote(c) for c in cmd)
-
-
-def _run_host(cmd, ifaces, timeout, env, cwd) -> Result:
+def _run_host(cmd: str, ifaces, timeout, env, cwd) -> Result:
+    why = host_can_reason()
+    if why:
+        raise BackendError("host", why)
     _ensure_host_ifaces(ifaces)
     t0 = time.monotonic()
     try:
-        p = subprocess.run(["/bin/sh", "-c", _as_shell(cmd)], capture_output=True, text=True,
+        p = subprocess.run(["/bin/sh", "-c", cmd], capture_output=True, text=True,
                            timeout=timeout, env=env, cwd=cwd, stdin=subprocess.DEVNULL)
     except subprocess.TimeoutExpired as e:
-        raise VcanError(f"timed out after {timeout:g} s") from e
+        raise BackendError("host", f"timed out after {timeout:g} s", boot_failed=False) from e
     return Result(p.returncode, p.stdout, p.stderr, "host", time.monotonic() - t0)
 
 
-def _init_script(work: str, cmd: str, ifaces: Sequence[str], env: Dict[str, str], cwd: str) -> str:
-    q = shlex.quote
-    lines = [
-        "#!/bin/sh",
-        "# init of a user-mode Linux guest written by hal/tools/vcan_run.py",
-        "PATH=/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin; export PATH",
-        f"W={q(work)}",
-        "fail() { echo \"vcan_run (guest): $*\" >> \"$W/setup.log\"; echo 125 > \"$W/status\"; "
-        "echo 125 > /proc/exitcode; halt -f; }",
-        "mount -t proc proc /proc || fail 'mount /proc'",
-        "mount -t sysfs sys /sys 2>/dev/null",
-        f"M={q(UML_MODULES)}/$(uname -r)/kernel",
-    ]
-    for m in UML_MODULE_FILES:
-        lines.append(f"insmod \"$M/{m}\" >> \"$W/setup.log\" 2>&1 || fail 'insmod {m}'")
-    lines.append("ip link set lo up >> \"$W/setup.log\" 2>&1")
-    for name in ifaces:
-        lines.append(f"ip link add dev {q(name)} type vcan >> \"$W/setup.log\" 2>&1 "
-                     f"&& ip link set up {q(name)} >> \"$W/setup.log\" 2>&1 || fail 'create {name}'")
-    # The host environment, minus what makes no sense in the guest.
-    for k, v in sorted(env.items()):
-        if k in _ENV_SKIP or not k.replace("_", "a").isalnum() or k[0].isdigit():
-            continue
-        lines.append(f"{k}={q(v)}; export {k}")
-    lines += [
-        f"cd {q(cwd)} || fail 'cd {cwd}'",
-        f"/bin/sh -c {q(cmd)} > \"$W/stdout\" 2> \"$W/stderr\" < /dev/null",
-        "rc=$?",
-        "echo $rc > \"$W/status\"",
-        "sync",
-        # linux.uml exits with what /proc/exitcode holds when the guest halts.
-        "echo $rc > /proc/exitcode",
-        "halt -f",
-    ]
-    return "\n".join(lines) + "\n"
+def _run_backend(backend: str, cmd: str, ifaces, timeout, env, cwd, mem, keep) -> Result:
+    if backend == "host":
+        return _run_host(cmd, ifaces, timeout, env, cwd)
+    if backend == "uml":
+        return vcan_uml.run(cmd, ifaces, timeout, env, cwd, mem, keep, _log)
+    if backend in ("qemu-kvm", "qemu-tcg"):
+        return vcan_qemu.run(cmd, ifaces, timeout, env, cwd, keep, backend.split("-")[1])
+    raise ValueError(f"mode must be one of {', '.join(MODES)}, not {backend!r}")
 
 
-def _read(path: str) -> str:
-    try:
-        with open(path, encoding="utf-8", errors="replace") as fh:
-            return fh.read()
-    except FileNotFoundError:
-        return ""
-
-
-def _run_uml(cmd, ifaces, timeout, env, cwd, mem, keep) -> Result:
-    why = uml_available()
-    if why:
-        raise VcanError(f"this kernel has no CAN and user-mode Linux cannot be used: {why}")
-    work = tempfile.mkdtemp(prefix="vcan_run.")
-    os.chmod(work, 0o755)
-    init = os.path.join(work, "init.sh")
-    with open(init, "w") as fh:
-        fh.write(_init_script(work, _as_shell(cmd), ifaces, env, cwd))
-    os.chmod(init, 0o755)
-    argv = [UML_KERNEL, f"mem={mem}", "root=/dev/root", "rootfstype=hostfs", "rootflags=/", "rw",
-            f"init={init}", "con=null", "con0=null,fd:1", f"umid=vcan{os.getpid()}x{os.path.basename(work)[-8:]}",
-            f"uml_dir={work}"]
-    t0 = time.monotonic()
-    console_path = os.path.join(work, "console.log")
-    with open(console_path, "wb") as console:
-        p = subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=console, stderr=subprocess.STDOUT,
-                             cwd=work, start_new_session=True)
-        try:
-            p.wait(timeout=timeout)
-        except subprocess.TimeoutExpired:
-            os.killpg(p.pid, signal.SIGKILL)
-            p.wait()
-            console_text = _read(console_path)
-            if not keep:
-                shutil.rmtree(work, ignore_errors=True)
-            raise VcanError(f"timed out after {timeout:g} s inside user-mode Linux "
-                            f"(console tail: {console_text[-400:]!r})")
-    seconds = time.monotonic() - t0
-    status = _read(os.path.join(work, "status")).strip()
-    res = Result(returncode=int(status) if status.lstrip("-").isdigit() else EXIT_INFRA,
-                 stdout=_read(os.path.join(work, "stdout")), stderr=_read(os.path.join(work, "stderr")),
-                 mode="uml", seconds=seconds, console=_read(console_path))
-    setup = _read(os.path.join(work, "setup.log"))
-    if not keep:
-        shutil.rmtree(work, ignore_errors=True)
-    if not status:
-        raise VcanError(f"the user-mode Linux guest did not report a status (linux.uml exit "
-                        f"{p.returncode}); setup: {setup.strip()[-300:]!r}; console tail: "
-                        f"{res.console[-400:]!r}")
-    if res.returncode == EXIT_INFRA and "vcan_run (guest)" in setup:
-        raise VcanError(f"guest set-up failed: {setup.strip()[-300:]}")
-    return res
+def _order(mode: str) -> Tuple[List[str], bool]:
+    """Backends to try for a mode, and whether falling back between them is allowed."""
+    if mode == "auto":
+        return list(BACKENDS), True
+    if mode == "qemu":
+        return ["qemu-kvm", "qemu-tcg"], True
+    if mode in BACKENDS:
+        return [mode], False
+    raise ValueError(f"mode must be one of {', '.join(MODES)}, not {mode!r}")
 
 
 def run(cmd: Union[str, Sequence[str]], *, ifaces: Sequence[str] = ("vcan0",), mode: str = "auto",
@@ -217,40 +156,86 @@ def run(cmd: Union[str, Sequence[str]], *, ifaces: Sequence[str] = ("vcan0",), m
         cwd: Optional[str] = None, mem: str = DEFAULT_MEM, keep: bool = False) -> Result:
     """Runs cmd (a shell string or an argv list) with the vcan interfaces up.
 
-    mode: "host" (this kernel's CAN), "uml" (user-mode Linux) or "auto" (host if it has CAN,
-    else UML; $ATTEKF_VCAN_MODE overrides auto). Raises VcanError if the command could not be
-    run; the command's own failure is Result.returncode."""
+    mode: a backend ("host", "uml", "qemu-kvm", "qemu-tcg"), "qemu" (KVM where usable, else
+    TCG) or "auto" (the first that works, in that order; $ATTEKF_VCAN_MODE overrides auto).
+    Raises VcanError if the command could not be run (the message names each backend's
+    reason); the command's own failure is Result.returncode."""
     env = dict(os.environ if env is None else env)
     cwd = os.path.abspath(cwd or os.getcwd())
     if mode == "auto":
-        mode = os.environ.get("ATTEKF_VCAN_MODE", "auto")
-    if mode == "auto":
-        mode = "host" if host_has_can() else "uml"
-    if mode == "host":
-        if not host_has_can():
-            raise VcanError("this kernel has no CAN support (PF_CAN); use mode uml")
-        return _run_host(cmd, ifaces, timeout, env, cwd)
-    if mode == "uml":
-        return _run_uml(cmd, ifaces, timeout, env, cwd, mem, keep)
-    raise ValueError(f"mode must be auto, host or uml, not {mode!r}")
+        mode = os.environ.get("ATTEKF_VCAN_MODE", "").strip() or "auto"
+    order, fallback = _order(mode)
+    shell = vcan_guest.as_shell(cmd)
+    reasons: List[str] = []
+    notes: List[str] = []
+    for i, backend in enumerate(order):
+        if fallback and backend in _failed:
+            reasons.append(f"{backend}: {_failed[backend]}")
+            continue
+        if backend == "qemu-kvm" and fallback:
+            why = vcan_qemu.available() or vcan_qemu.kvm_usable()
+            if why:        # not an attempt: say why once, then TCG
+                _failed[backend] = f"not usable: {why}"
+                reasons.append(f"{backend}: not usable: {why}")
+                _log(f"{backend}: not usable: {why}; trying {order[i + 1]}")
+                continue
+        try:
+            res = _run_backend(backend, shell, ifaces, timeout, env, cwd, mem, keep)
+        except BackendError as e:
+            if not fallback or not e.boot_failed:
+                raise VcanError(f"{backend}: {e.reason}" if fallback else str(e)) from e
+            _failed[backend] = e.reason
+            reasons.append(f"{backend}: {e.reason}")
+            nxt = f"; trying {order[i + 1]}" if i + 1 < len(order) else ""
+            _log(f"{backend}: {e.reason}{nxt}")
+            notes.append(f"{backend}: {e.reason}")
+            continue
+        res.notes = notes + res.notes
+        return res
+    raise VcanError("no backend could run the command: " + " | ".join(reasons))
+
+
+def _print_backends() -> int:
+    for name, (why, expected) in backend_status().items():
+        state = "usable" if why is None else f"not usable: {why}"
+        print(f"{name:9s} {state}" + ("" if why is None or not expected else " (the set-up should provide it)"))
+    if vcan_uml.available() is None:
+        need, why = vcan_uml.wrapper_needed()
+        print(f"{'':9s} UML XSTATE wrapper {'needed' if need else 'not needed'}: {why}")
+    return 0
 
 
 def main(argv: Optional[List[str]] = None) -> int:
     ap = argparse.ArgumentParser(
         prog="vcan_run.py",
         description="Run a command with virtual CAN interfaces up: directly if this kernel has CAN, "
-                    "else inside user-mode Linux. Exits with the command's status (125: could not "
-                    "run it).")
-    ap.add_argument("--mode", choices=("auto", "host", "uml"), default="auto",
-                    help="where to run (default auto; $ATTEKF_VCAN_MODE overrides auto)")
+                    "else inside user-mode Linux, else inside QEMU. Exits with the command's status "
+                    "(125: no backend could run it).")
+    ap.add_argument("--mode", choices=MODES, default="auto",
+                    help="backend (default auto: the first that works; $ATTEKF_VCAN_MODE overrides auto)")
     ap.add_argument("--iface", action="append", default=None, metavar="NAME",
                     help="vcan interface to create (repeatable; default vcan0)")
     ap.add_argument("--timeout", type=float, default=DEFAULT_TIMEOUT_S, help="seconds (default 300)")
     ap.add_argument("--mem", default=DEFAULT_MEM, help="UML guest memory (default 512M)")
-    ap.add_argument("--keep", action="store_true", help="keep the UML work directory (debugging)")
+    ap.add_argument("--keep", action="store_true", help="keep the guest's work directory (debugging)")
     ap.add_argument("--shell", metavar="CMD", help="a shell command line instead of CMD ARGS")
+    ap.add_argument("--repeat", type=int, default=1, metavar="N",
+                    help="run N times and print each run's backend, boot and total time (benchmark)")
+    ap.add_argument("--backends", action="store_true", help="print what each backend needs and exit")
+    ap.add_argument("--prepare", action="store_true",
+                    help="fetch Debian's kernel for the QEMU backend into the cache and exit")
     ap.add_argument("cmd", nargs=argparse.REMAINDER, help="-- CMD ARGS...")
     args = ap.parse_args(argv)
+    if args.backends:
+        return _print_backends()
+    if args.prepare:
+        try:
+            k = vcan_qemu.prepare_kernel(log=lambda m: print(f"vcan_run: {m}"))
+        except (RuntimeError, OSError, ValueError) as e:
+            print(f"vcan_run: --prepare: {e}", file=sys.stderr)
+            return 1
+        print(f"vcan_run: QEMU guest kernel {k['package']} in {k['dir']}")
+        return 0
     cmd: Union[str, List[str]]
     if args.shell is not None:
         cmd = args.shell
@@ -258,15 +243,32 @@ def main(argv: Optional[List[str]] = None) -> int:
         cmd = args.cmd[1:] if args.cmd[:1] == ["--"] else args.cmd
         if not cmd:
             ap.error("no command given (use -- CMD ARGS... or --shell 'CMD')")
+    if args.repeat < 1:
+        ap.error("--repeat must be at least 1")
     try:
-        res = run(cmd, ifaces=args.iface or ["vcan0"], mode=args.mode, timeout=args.timeout,
-                  mem=args.mem, keep=args.keep)
-    except VcanError as e:
-        print(f"vcan_run: {e}", file=sys.stderr)
-        return EXIT_INFRA
-    sys.stdout.write(res.stdout)
-    sys.stderr.write(res.stderr)
-    return res.returncode
+        vcan_uml.xstate_setting()
+    except ValueError as e:
+        ap.error(str(e))
+    rc = 0
+    for k in range(args.repeat):
+        try:
+            res = run(cmd, ifaces=args.iface or ["vcan0"], mode=args.mode, timeout=args.timeout,
+                      mem=args.mem, keep=args.keep)
+        except VcanError as e:
+            print(f"vcan_run: {e}", file=sys.stderr)
+            if args.repeat == 1:
+                return EXIT_INFRA
+            print(f"run {k + 1}: failed: {e}")
+            rc = EXIT_INFRA
+            continue
+        if args.repeat == 1:
+            sys.stdout.write(res.stdout)
+            sys.stderr.write(res.stderr)
+            return res.returncode
+        print(f"run {k + 1}: {res.mode} exit {res.returncode}, command started after {res.boot_seconds:.2f} s, "
+              f"total {res.seconds:.2f} s", flush=True)
+        rc = rc or res.returncode
+    return rc
 
 
 if __name__ == "__main__":

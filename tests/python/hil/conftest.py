@@ -1,8 +1,9 @@
 """Fixtures of the hardware-in-loop tests (tests/python/hil): the vcan runner and the node.
 
-The HIL needs a kernel with CAN (vcan) or user-mode Linux (hal/tools/vcan_run.py). On a machine
-with neither the tests skip with the reason, except under CI (CI=true), where they fail: the
-project's set-up installs user-mode-linux, so a missing UML there is a broken set-up."""
+The HIL needs one of the backends of hal/tools/vcan_run.py: a kernel with CAN, user-mode Linux
+or QEMU. On a machine with none the tests skip with the reasons, except under CI (CI=true),
+where they fail: the project's set-up installs UML and QEMU, so none usable there is a broken
+set-up."""
 
 from __future__ import annotations
 
@@ -21,19 +22,18 @@ def pytest_terminal_summary(terminalreporter):
 
 
 def _unavailable(reason: str):
-    if os.environ.get("CI", "").lower() in ("1", "true", "yes"):
+    if hilutil.under_ci():
         pytest.fail(f"HIL cannot run on this CI machine: {reason}", pytrace=False)
     pytest.skip(f"HIL not run: {reason}")
 
 
 @pytest.fixture(scope="session")
 def vcan():
-    """The vcan_run module, checked usable (host CAN or UML)."""
+    """The vcan_run module, checked to have at least one usable backend."""
     mod = hilutil.vcan_run_module()
-    if not mod.host_has_can():
-        why = mod.uml_available()
-        if why:
-            _unavailable(why)
+    status = mod.backend_status()
+    if all(why for why, _expected in status.values()):
+        _unavailable("; ".join(f"{b}: {why}" for b, (why, _e) in status.items()))
     return mod
 
 

@@ -17,6 +17,11 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[3]
 SCENARIO = REPO / "hal" / "tools" / "hil_scenario.sh"
 REPORT: List[str] = []   # lines for the terminal summary (measured loss, latency)
+FULL_SUITE_BACKEND: List[str] = []   # the backend the full HIL suite ran on in this session
+
+
+def under_ci() -> bool:
+    return os.environ.get("CI", "").lower() in ("1", "true", "yes")
 
 
 def report(line: str) -> None:
@@ -28,12 +33,25 @@ def node_binary() -> Path:
 
 
 def vcan_run_module():
-    """hal/tools/vcan_run.py, imported by path (it is a stand-alone script)."""
+    """hal/tools/vcan_run.py, imported by path (it is a stand-alone script; its backend
+    modules beside it become importable as vcan_guest, vcan_uml, vcan_qemu). Imported once:
+    the runner remembers which backends failed in this process."""
+    if "vcan_run" in sys.modules:
+        return sys.modules["vcan_run"]
     spec = importlib.util.spec_from_file_location("vcan_run", REPO / "hal" / "tools" / "vcan_run.py")
     mod = importlib.util.module_from_spec(spec)
     sys.modules["vcan_run"] = mod
     spec.loader.exec_module(mod)
     return mod
+
+
+def read_ifstats(path: Path) -> Dict[str, Dict[str, int]]:
+    """hil_scenario.sh's ifstats.txt: {"start": {"rx_dropped": N, ...}, "end": {...}}."""
+    out: Dict[str, Dict[str, int]] = {}
+    for line in path.read_text().splitlines():
+        label, *pairs = line.split()
+        out[label] = {k: int(v) for k, v in (p.split("=", 1) for p in pairs) if v.lstrip("-").isdigit()}
+    return out
 
 
 # ---------------------------------------------------------------------------------------------

@@ -1,4 +1,5 @@
-"""Hardware-in-loop test on vcan0 (user-mode Linux on machines without CAN; docs/hil.md).
+"""Hardware-in-loop test on vcan0, on the first backend of hal/tools/vcan_run.py that works
+here (the host's CAN, user-mode Linux or QEMU; docs/hil.md).
 
 One guest boot runs three scenarios with hal/tools/hil_scenario.sh (attekf-node on vcan0,
 `attekf record` logging the bus, `attekf replay` injecting the stream at recorded time):
@@ -11,7 +12,7 @@ One guest boot runs three scenarios with hal/tools/hil_scenario.sh (attekf-node 
 and the same frame logs go through the node's virtual backend (attekf-node --replay) on the host.
 The clean runs must lose no input frame, produce every expected output, and equal the virtual
 run; the fault run must count every injected fault and recover from the bus outage.
-Runtime: about 40 s (boot 2 s, three Python-heavy scenarios, 20 s of paced replay).
+Runtime: about 40 s under UML (boot 2 s, three Python-heavy scenarios, 20 s of paced replay).
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ from hilutil import report
 RATE_SIM_HZ = 200.0
 OUT_PERIOD_US = 10000        # the node's default output rate, 100 Hz
 BROAD_TRIAL = "07_undisturbed_fast_rotation_B.hdf5"
-BROAD_DIR = Path(os.environ.get("ATTEKF_BROAD_DIR") or Path(__file__).resolve().parents[4] / "shared/data/broad")
+BROAD_DIR = Path(os.environ.get("ATTEKF_BROAD_DIR", hilutil.REPO.parent / "shared" / "data" / "broad"))
 FAULT_SECONDS = 6.0
 LATE_PART = 1000             # sample of the late faults (after the bounce)
 BOUNCE = (3.0, 0.3)          # vcan0 down AFTER s after the first frame, for DOWN s
@@ -102,7 +103,9 @@ def hil(tmp_path_factory, vcan, node):
         for name, s in scen.items()) + "; true"
     env = dict(os.environ, ATTEKF_NODE=str(node))
     res = vcan.run(script, env=env, timeout=600)
-    report(f"HIL ran in {res.mode} mode, {res.seconds:.1f} s wall time (boot included)")
+    hilutil.FULL_SUITE_BACKEND.append(res.mode)
+    report(f"HIL ran on backend {res.mode}, {res.seconds:.1f} s wall time (command started after "
+           f"{res.boot_seconds:.1f} s)" + "".join(f"; {n}" for n in res.notes))
     for name, s in scen.items():
         d = s["dir"]
         status = (d / "status").read_text().strip() if (d / "status").exists() else "missing"
@@ -114,6 +117,7 @@ def hil(tmp_path_factory, vcan, node):
         s["node"] = json.loads((d / "node.json").read_text())
         s["record"] = json.loads((d / "record.json").read_text())
         s["replay"] = json.loads((d / "replay.json").read_text())
+        s["ifstats"] = hilutil.read_ifstats(d / "ifstats.txt")
         s["live_out"] = hilutil.decode_outputs(d / "bus.log")
         s["virt_out"] = hilutil.decode_outputs(s["virtual_log"])
     hil_recreate = {"node": json.loads((rdir / "node.json").read_text()) if (rdir / "node.json").exists() else None,
@@ -128,7 +132,10 @@ CLEAN = ["clean-sim", "clean-broad"]
 
 def _scenario(hil, name):
     if name not in hil:
-        pytest.skip(f"{BROAD_DIR / BROAD_TRIAL} not present (real data is not part of the repository)")
+        msg = f"{BROAD_DIR / BROAD_TRIAL} not present (real data is not part of the repository)"
+        if hilutil.under_ci():
+            pytest.fail(msg, pytrace=False)
+        pytest.skip(msg)
     return hil[name]
 
 
@@ -147,6 +154,8 @@ def test_zero_input_frames_lost(hil, name):
     assert c["samples"] == len(s["rec"])
     r = s["record"]
     assert r["input_samples"] == len(s["rec"]) and r["input_seq_missing"] == 0
+    st = s["ifstats"]
+    assert st["end"]["rx_dropped"] == st["start"]["rx_dropped"], "the kernel dropped frames on vcan0"
     report(f"{name}: {n_frames} input frames sent, {c['rx_frames']} received by the node, "
            f"{c['rx_overflow']} kernel drops, {r['input_seq_missing']} missing on the bus")
 
@@ -219,7 +228,13 @@ def test_faults_live_counters_and_flags(hil):
     c = s["node"]["counters"]
     rp = s["replay"]
     assert rp["failed"] > 0, "the bus outage did not make any send fail"
-    assert c["rx_frames"] == rp["frames"], "frames sent while vcan0 was up must all arrive"
+    # A frame whose send() succeeds just as vcan0 goes down can be dropped by the kernel before
+    # any socket sees it; the interface counts it in rx_dropped. Every other frame must arrive.
+    st = s["ifstats"]
+    dropped = st["end"]["rx_dropped"] - st["start"]["rx_dropped"]
+    lost = rp["frames"] - c["rx_frames"]
+    assert 0 <= lost <= dropped, (f"{lost} frames sent while vcan0 was up did not reach the node, "
+                                  f"the kernel counted {dropped} drops on vcan0")
     assert c["rx_overflow"] == 0
     for k in FRAME_LEVEL:
         assert c[k] == exp[k], f"{k}: {c[k]} != {exp[k]}"
@@ -250,7 +265,8 @@ def test_faults_live_counters_and_flags(hil):
     report(f"faults: node counted unknown_id={c['unknown_id']} bad_dlc={c['bad_dlc']} duplicate={c['duplicate']} "
            f"late={c['late']} incomplete={c['incomplete']} discarded={c['discarded']} gaps={c['gaps']} "
            f"missing={c['missing']} link_down={c['link_down']}; replay: {rp['failed']} sends failed "
-           f"while vcan0 was down; node received all {c['rx_frames']} frames sent")
+           f"while vcan0 was down; node received {c['rx_frames']} of the {rp['frames']} frames sent, "
+           f"vcan0 counted {dropped} kernel drops around the outage")
 
 
 def canproto_bits():
