@@ -156,7 +156,8 @@ def test_every_command_works_outside_the_repository(installed):
     installed.run(attekf, "record", "-q", "--from-log", "frames.log", "--inputs-csv", "inputs.csv",
                   "--stats", "stats.json")
     def data_rows(name):
-        return [r for r in (w / name).read_text().splitlines()[1:] if r and not r.startswith("#")]
+        lines = [r for r in (w / name).read_text().splitlines() if r and not r.startswith("#")]
+        return lines[1:]  # after the header (sim's CSV starts with "# key: value" lines)
     assert len(data_rows("inputs.csv")) == len(data_rows("rec.csv")) == 2001
     # bench with the [bench] extra: ours and every baseline on a simulated trial
     installed.run(attekf, "bench", "-q", "--data", "trials", "--jobs", "1", "--no-plot", "--json", "bench.json")
