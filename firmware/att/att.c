@@ -7,6 +7,7 @@
 
 #include "att_gen.h"
 #include "att_model.h"
+#include "ekf_util.h"
 
 const att_settings_t att_default_settings = {
     /* process model */
@@ -73,27 +74,15 @@ enum { SENSOR_GYRO = 0, SENSOR_ACCEL = 1, SENSOR_MAG = 2 };
  * by design (docs/derivation.md, "Covariance bounds"). */
 #define ATT_PD_MARGIN ekf_mul(EKF_C(10 * ATT_N * ATT_N), EKF_SCALAR_EPS)
 
-static void count(uint32_t *c)
-{
-    if (*c != UINT32_MAX) {
-        ++*c;
-    }
-}
-
 /* Counts a refused call in the diagnostics and passes the status through. */
 static ekf_status_t note(att_ekf_t *f, ekf_status_t st)
 {
     if (st == EKF_ERR_NUMERIC) {
-        count(&f->diag.numeric);
+        ekf_count(&f->diag.numeric);
     } else if (st != EKF_OK && st != EKF_GATED && st != EKF_SKIPPED) {
-        count(&f->diag.rejected);
+        ekf_count(&f->diag.rejected);
     }
     return st;
-}
-
-static int in_range(ekf_scalar_t v, ekf_scalar_t lo, ekf_scalar_t hi)
-{
-    return ekf_isfinite(v) && v >= lo && v <= hi;
 }
 
 ekf_status_t att_settings_check(const att_settings_t *s)
@@ -102,30 +91,30 @@ ekf_status_t att_settings_check(const att_settings_t *s)
     if (s == NULL) {
         return EKF_ERR_NULL;
     }
-    if (!in_range(s->rate_walk, EKF_C(1e-6), big) || !in_range(s->angle_walk, EKF_C(0), big) ||
-        !in_range(s->euler_rate_rel, EKF_C(1e-6), EKF_C(1)) || !in_range(s->gyro_noise, EKF_C(1e-9), big) ||
-        !in_range(s->gyro_gate, EKF_C(0), big) || !in_range(s->gyro_range, EKF_C(1e-3), big) ||
-        !in_range(s->gravity, EKF_C(0.1), big) || !in_range(s->accel_noise, EKF_C(1e-9), big) ||
-        !in_range(s->accel_band, EKF_C(0), big) || !in_range(s->accel_reject, EKF_C(1e-6), big) ||
-        !in_range(s->accel_adapt_tau, EKF_C(0), big) || !in_range(s->accel_lpf_tau, EKF_C(0), big) ||
-        !in_range(s->accel_gate, EKF_C(0), big) || !in_range(s->accel_range, s->gravity, big) ||
-        !in_range(s->mag_heading_noise, EKF_C(1e-9), EKF_PI) || !in_range(s->mag_gate, EKF_C(0), big) ||
-        !in_range(s->mag_norm_tol, EKF_C(1e-6), big) || !in_range(s->mag_dip_tol, EKF_C(1e-6), EKF_PI) ||
-        !in_range(s->mag_reset_time, EKF_C(0), big) ||
-        !in_range(s->mag_ref_norm, EKF_C(0), big) ||
-        !in_range(s->mag_ref_dip, ekf_neg(EKF_HALF_PI), EKF_HALF_PI) ||
-        !in_range(s->mag_declination, ekf_neg(EKF_PI), EKF_PI) || !in_range(s->mag_range, EKF_C(1e-6), big) ||
-        !in_range(s->gate_timeout, EKF_C(0), big) ||
-        !in_range(s->gimbal_limit, EKF_C(0.1), EKF_C(1.5697963267948966)) || /* pi/2 - 1 mrad */
-        !in_range(s->dt_max, EKF_C(1e-6), EKF_C(60)) ||
-        !in_range(s->heading_var_max, ekf_max(EKF_C(1e-6), s->var_floor), big) || /* a cap below the floor */
-        !in_range(s->var_floor, EKF_C(1e-30), EKF_C(1e-2)) ||
-        !in_range(s->init_tilt_sigma, EKF_C(1e-6), EKF_PI) ||
-        !in_range(s->init_heading_sigma, EKF_C(1e-6), EKF_TWO_PI) ||
-        !in_range(s->init_rate_sigma, EKF_C(1e-6), big) || s->align_samples == 0u ||
-        !in_range(s->rest.rest_gyro, EKF_C(1e-6), big) || !in_range(s->rest.rest_accel, EKF_C(1e-6), big) ||
-        !in_range(s->rest.rest_time, EKF_C(0), big) || !in_range(s->rest.rest_tau, EKF_C(0), big) ||
-        !in_range(s->rest.bias_tau, EKF_C(0), big) || !in_range(s->rest.bias_max, EKF_C(0), s->gyro_range)) {
+    if (!ekf_in_range(s->rate_walk, EKF_C(1e-6), big) || !ekf_in_range(s->angle_walk, EKF_C(0), big) ||
+        !ekf_in_range(s->euler_rate_rel, EKF_C(1e-6), EKF_C(1)) || !ekf_in_range(s->gyro_noise, EKF_C(1e-9), big) ||
+        !ekf_in_range(s->gyro_gate, EKF_C(0), big) || !ekf_in_range(s->gyro_range, EKF_C(1e-3), big) ||
+        !ekf_in_range(s->gravity, EKF_C(0.1), big) || !ekf_in_range(s->accel_noise, EKF_C(1e-9), big) ||
+        !ekf_in_range(s->accel_band, EKF_C(0), big) || !ekf_in_range(s->accel_reject, EKF_C(1e-6), big) ||
+        !ekf_in_range(s->accel_adapt_tau, EKF_C(0), big) || !ekf_in_range(s->accel_lpf_tau, EKF_C(0), big) ||
+        !ekf_in_range(s->accel_gate, EKF_C(0), big) || !ekf_in_range(s->accel_range, s->gravity, big) ||
+        !ekf_in_range(s->mag_heading_noise, EKF_C(1e-9), EKF_PI) || !ekf_in_range(s->mag_gate, EKF_C(0), big) ||
+        !ekf_in_range(s->mag_norm_tol, EKF_C(1e-6), big) || !ekf_in_range(s->mag_dip_tol, EKF_C(1e-6), EKF_PI) ||
+        !ekf_in_range(s->mag_reset_time, EKF_C(0), big) ||
+        !ekf_in_range(s->mag_ref_norm, EKF_C(0), big) ||
+        !ekf_in_range(s->mag_ref_dip, ekf_neg(EKF_HALF_PI), EKF_HALF_PI) ||
+        !ekf_in_range(s->mag_declination, ekf_neg(EKF_PI), EKF_PI) || !ekf_in_range(s->mag_range, EKF_C(1e-6), big) ||
+        !ekf_in_range(s->gate_timeout, EKF_C(0), big) ||
+        !ekf_in_range(s->gimbal_limit, EKF_C(0.1), EKF_C(1.5697963267948966)) || /* pi/2 - 1 mrad */
+        !ekf_in_range(s->dt_max, EKF_C(1e-6), EKF_C(60)) ||
+        !ekf_in_range(s->heading_var_max, ekf_max(EKF_C(1e-6), s->var_floor), big) || /* a cap below the floor */
+        !ekf_in_range(s->var_floor, EKF_C(1e-30), EKF_C(1e-2)) ||
+        !ekf_in_range(s->init_tilt_sigma, EKF_C(1e-6), EKF_PI) ||
+        !ekf_in_range(s->init_heading_sigma, EKF_C(1e-6), EKF_TWO_PI) ||
+        !ekf_in_range(s->init_rate_sigma, EKF_C(1e-6), big) || s->align_samples == 0u ||
+        !ekf_in_range(s->rest.rest_gyro, EKF_C(1e-6), big) || !ekf_in_range(s->rest.rest_accel, EKF_C(1e-6), big) ||
+        !ekf_in_range(s->rest.rest_time, EKF_C(0), big) || !ekf_in_range(s->rest.rest_tau, EKF_C(0), big) ||
+        !ekf_in_range(s->rest.bias_tau, EKF_C(0), big) || !ekf_in_range(s->rest.bias_max, EKF_C(0), s->gyro_range)) {
         return EKF_ERR_SETTINGS;
     }
     return EKF_OK;
@@ -497,7 +486,7 @@ static ekf_status_t predict_stage(att_ekf_t *f, ekf_scalar_t dt)
     f->flags &= ~ATT_FLAG_REMAPPED;
     if (att_model_normalise(f->x, f->P)) {
         f->flags |= ATT_FLAG_REMAPPED;
-        count(&f->diag.remaps);
+        ekf_count(&f->diag.remaps);
     }
     update_gimbal_flag(f);
     limit_variances(f);
@@ -577,7 +566,7 @@ static ekf_status_t stage_gyro_saturated(att_ekf_t *f, const ekf_scalar_t gyro[3
     (void)att_trig(f->x[ATT_PHI], f->x[ATT_THETA], f->settings.gimbal_limit, &t);
     att_gen_noise_jacobian(&t, g);
     add_rate_noise(f->P, g, extra);
-    count(&f->diag.gyro_saturated);
+    ekf_count(&f->diag.gyro_saturated);
     return EKF_SKIPPED;
 }
 
@@ -611,17 +600,17 @@ static ekf_status_t stage_gyro(att_ekf_t *f, const ekf_scalar_t gyro[3])
         f->diag.gyro_ratio[i] = info.test_ratio;
         if (st == EKF_GATED) {
             gated = 1;
-            count(&f->diag.gyro_gated);
+            ekf_count(&f->diag.gyro_gated);
         } else if (st != EKF_OK) {
             return note(f, st);
         } else {
-            count(&f->diag.gyro_fused);
+            ekf_count(&f->diag.gyro_fused);
             bypass_failed |= fails_gate(&info, f->settings.gyro_gate);
         }
     }
     /* the rates correlate with the angles: the update may have moved them too */
     if (att_model_normalise(f->x, f->P)) {
-        count(&f->diag.remaps);
+        ekf_count(&f->diag.remaps);
     }
     update_gimbal_flag(f);
     gate_result(f, SENSOR_GYRO, gated || bypass_failed);
@@ -684,7 +673,7 @@ static ekf_status_t stage_accel(att_ekf_t *f, const ekf_scalar_t accel[3])
     if (err > s->accel_reject || !(norm > EKF_C(0))) {
         /* far from 1 g: the direction is dominated by linear acceleration */
         f->flags |= ATT_FLAG_ACCEL_REJECTED;
-        count(&f->diag.accel_skipped);
+        ekf_count(&f->diag.accel_skipped);
         return EKF_SKIPPED;
     }
     /* unit-vector measurement; variance (accel_noise^2 + recent linear-acceleration
@@ -706,7 +695,7 @@ static ekf_status_t stage_accel(att_ekf_t *f, const ekf_scalar_t accel[3])
         /* the shaking averaged to no force at all: no direction to fuse (the raw sample's
          * zero norm was rejected above) */
         f->flags |= ATT_FLAG_ACCEL_REJECTED;
-        count(&f->diag.accel_skipped);
+        ekf_count(&f->diag.accel_skipped);
         return EKF_SKIPPED;
     }
     norm = a_norm;
@@ -730,18 +719,18 @@ static ekf_status_t stage_accel(att_ekf_t *f, const ekf_scalar_t accel[3])
         consistent = consistent && (st == EKF_OK) && !fails_gate(&info, EKF_C(3));
         if (st == EKF_GATED) {
             gated = 1;
-            count(&f->diag.accel_gated);
+            ekf_count(&f->diag.accel_gated);
         } else if (st != EKF_OK) {
             if (att_model_normalise(f->x, f->P)) {
-                count(&f->diag.remaps);
+                ekf_count(&f->diag.remaps);
             }
             return note(f, st);
         } else {
-            count(&f->diag.accel_fused);
+            ekf_count(&f->diag.accel_fused);
         }
     }
     if (att_model_normalise(f->x, f->P)) {
-        count(&f->diag.remaps);
+        ekf_count(&f->diag.remaps);
     }
     update_gimbal_flag(f);
     gate_result(f, SENSOR_ACCEL, gated || bypass_failed);
@@ -792,7 +781,7 @@ static ekf_status_t stage_mag(att_ekf_t *f, const ekf_scalar_t mag[3])
     if ((f->flags & ATT_FLAG_GIMBAL_LOCK) != 0u) {
         /* heading is ill-defined next to theta = +-90 deg: hold it */
         f->flags |= ATT_FLAG_HEADING_HELD;
-        count(&f->diag.mag_skipped);
+        ekf_count(&f->diag.mag_skipped);
         return EKF_SKIPPED;
     }
     norm = norm3(mag);
@@ -801,7 +790,7 @@ static ekf_status_t stage_mag(att_ekf_t *f, const ekf_scalar_t mag[3])
     if (!(ekf_sqrt(ekf_add(ekf_sq(lev[0]), ekf_sq(lev[1]))) > ekf_mul(EKF_C(1e-3), norm))) {
         /* no horizontal component (or no field at all): no heading information */
         f->flags |= ATT_FLAG_MAG_DISTURBED;
-        count(&f->diag.mag_skipped);
+        ekf_count(&f->diag.mag_skipped);
         return EKF_SKIPPED;
     }
     heading = mag_heading(f, lev);
@@ -811,14 +800,14 @@ static ekf_status_t stage_mag(att_ekf_t *f, const ekf_scalar_t mag[3])
         set_mag_reference(f, norm, mag_dip(lev));
         reset_heading(f, heading, ekf_min(ekf_sq(s->init_heading_sigma), s->heading_var_max));
         f->flags &= ~ATT_FLAG_HEADING_LIMITED;
-        count(&f->diag.mag_fused);
+        ekf_count(&f->diag.mag_fused);
         return EKF_OK;
     }
     f->diag.mag_norm_error = ekf_sub(ekf_div(norm, f->mag_ref_norm), EKF_C(1));
     f->diag.mag_dip_error = ekf_sub(mag_dip(lev), f->mag_ref_dip);
     if (ekf_abs(f->diag.mag_norm_error) > s->mag_norm_tol || ekf_abs(f->diag.mag_dip_error) > s->mag_dip_tol) {
         f->flags |= ATT_FLAG_MAG_DISTURBED;
-        count(&f->diag.mag_skipped);
+        ekf_count(&f->diag.mag_skipped);
         /* the reset below needs mag_reset_time of gating an undisturbed field: a body-fixed
          * offset can pass the tests for a moment in a turn (the soak found a reset to
          * such a sample) */
@@ -836,8 +825,8 @@ static ekf_status_t stage_mag(att_ekf_t *f, const ekf_scalar_t mag[3])
          * sensor can pass the norm and dip tests for seconds; with these conditions no
          * reset fires on BROAD's attached-magnet trials (docs/derivation.md, "Magnetometer"). */
         reset_heading(f, heading, ekf_min(ekf_sq(s->init_heading_sigma), s->heading_var_max));
-        count(&f->diag.heading_resets);
-        count(&f->diag.mag_fused);
+        ekf_count(&f->diag.heading_resets);
+        ekf_count(&f->diag.mag_fused);
         gate_result(f, SENSOR_MAG, 0);
         return EKF_OK;
     }
@@ -852,7 +841,7 @@ static ekf_status_t stage_mag(att_ekf_t *f, const ekf_scalar_t mag[3])
     st = ekf_update_scalar(f->x, f->P, ATT_N, &hr, nu, r_var, s->mag_gate, s->var_floor, &info);
     f->diag.mag_ratio = info.test_ratio;
     if (st == EKF_GATED) {
-        count(&f->diag.mag_gated);
+        ekf_count(&f->diag.mag_gated);
         gate_result(f, SENSOR_MAG, 1);
         f->flags |= ATT_FLAG_MAG_GATED;
         return EKF_GATED;
@@ -860,10 +849,10 @@ static ekf_status_t stage_mag(att_ekf_t *f, const ekf_scalar_t mag[3])
     if (st != EKF_OK) {
         return note(f, st);
     }
-    count(&f->diag.mag_fused);
+    ekf_count(&f->diag.mag_fused);
     gate_result(f, SENSOR_MAG, 0);
     if (att_model_normalise(f->x, f->P)) {
-        count(&f->diag.remaps);
+        ekf_count(&f->diag.remaps);
     }
     return EKF_OK;
 }
@@ -886,7 +875,7 @@ static void guard_covariance(att_ekf_t *f)
     }
     if (ekf_cov_ensure_pd(f->P, ATT_N, ATT_PD_MARGIN, f->settings.var_floor, ldl) > 0) {
         f->flags |= ATT_FLAG_COV_REPAIRED;
-        count(&f->diag.cov_repairs);
+        ekf_count(&f->diag.cov_repairs);
     } else {
         f->flags &= ~ATT_FLAG_COV_REPAIRED;
     }
@@ -999,7 +988,7 @@ ekf_status_t att_step(att_ekf_t *f, const att_sample_t *sample, att_step_report_
     }
     rep->predict = predict_stage(f, sample->dt);
     if (rep->predict == EKF_OK) {
-        count(&f->diag.steps);
+        ekf_count(&f->diag.steps);
     }
     if ((sample->valid & ATT_HAS_ACCEL) != 0u) {
         rep->accel = stage_accel(f, sample->accel);
