@@ -27,9 +27,14 @@
 
 #include <stdint.h>
 
+#include "att_cov.h"
 #include "att_defs.h"
 #include "att_rest.h"
 #include "ekf.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
 
 /* Settings: every tunable, with its unit. att_default_settings holds the defaults. */
 typedef struct {
@@ -135,11 +140,11 @@ typedef struct {
     ekf_scalar_t mag_dip_error;    /* last dip - ref dip, rad */
 } att_diag_t;
 
-/* Filter memory. Treat as opaque: read it through the accessors below. */
+/* Everything a call of the filter can change (all but the settings). Treat as opaque:
+ * read it through the accessors below. */
 typedef struct {
     ekf_scalar_t x[ATT_N];
-    ekf_scalar_t P[ATT_N * ATT_N];
-    att_settings_t settings;
+    att_cov_t cov;              /* covariance of x (att_cov.h; layout of the implementation) */
     ekf_scalar_t mag_ref_norm;  /* in use (set or learned) */
     ekf_scalar_t mag_ref_dip;
     ekf_scalar_t mag_tan2_dip;  /* tan^2 of mag_ref_dip (set with the reference) */
@@ -157,6 +162,12 @@ typedef struct {
     att_rest_t rest;            /* rest detector and gyroscope offset */
     uint32_t flags;
     att_diag_t diag;
+} att_vars_t;
+
+/* Filter memory: the settings (fixed by att_init) and the variables. Treat as opaque. */
+typedef struct {
+    att_settings_t settings;
+    att_vars_t vars;
 } att_ekf_t;
 
 /* Sensor presence bits of att_sample_t.valid */
@@ -220,9 +231,13 @@ void att_get_euler_rates(const att_ekf_t *f, ekf_scalar_t e[3]);     /* rad/s */
 void att_get_gyro_bias(const att_ekf_t *f, ekf_scalar_t b[3]);
 void att_get_quaternion(const att_ekf_t *f, ekf_scalar_t q[4]);      /* w, x, y, z: body to ENU */
 void att_get_variances(const att_ekf_t *f, ekf_scalar_t var[ATT_N]); /* diagonal of P */
+void att_get_covariance(const att_ekf_t *f, ekf_scalar_t P[ATT_N * ATT_N]); /* all of P, row-major */
 const ekf_scalar_t *att_state(const att_ekf_t *f);                   /* x[ATT_N] */
-const ekf_scalar_t *att_covariance(const att_ekf_t *f);              /* P, row-major */
 uint32_t att_flags(const att_ekf_t *f);
 const att_diag_t *att_diag(const att_ekf_t *f);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* ATT_H */

@@ -222,7 +222,7 @@ int main(int argc, char **argv)
         att_sample_t smp;
         ekf_status_t s;
         double w[3], truth[3], est_d[3], pivot, err;
-        ekf_scalar_t est[3];
+        ekf_scalar_t est[3], P[ATT_N * ATT_N];
         const att_diag_t *d;
         int benign, sat = 0;
 
@@ -292,10 +292,11 @@ int main(int argc, char **argv)
             prev = *d;
             continue;
         }
-        if (!ts_is_symmetric_exact(att_covariance(&f), ATT_N)) {
+        att_get_covariance(&f, P);
+        if (!ts_is_symmetric_exact(P, ATT_N)) {
             return fail(k, "P not symmetric");
         }
-        if (!ts_is_positive_definite(att_covariance(&f), ATT_N, &pivot)) {
+        if (!ts_is_positive_definite(P, ATT_N, &pivot)) {
             return fail(k, "P not positive definite");
         }
         if (pivot < st.min_pivot) {
@@ -334,7 +335,7 @@ int main(int argc, char **argv)
                     norm3(seg.lin_acc), seg.jitter, sat, benign,
                     truth[0] * RAD2DEG, truth[1] * RAD2DEG, truth[2] * RAD2DEG, est_d[0] * RAD2DEG,
                     est_d[1] * RAD2DEG, est_d[2] * RAD2DEG, err,
-                    sqrt(ekf_to_double(att_covariance(&f)[ATT_PSI * ATT_N + ATT_PSI])) * RAD2DEG,
+                    sqrt(ekf_to_double(P[ATT_PSI * ATT_N + ATT_PSI])) * RAD2DEG,
                     (unsigned)att_flags(&f));
         }
         if (benign) {
@@ -358,9 +359,9 @@ int main(int argc, char **argv)
            "cov_repairs=%u remaps=%u rejected=%u gated=%u/%u/%u skipped=%u/%u saturated=%llu dropouts=%llu bad_inputs=%llu",
            EKF_SCALAR_NAME, seed, bound_deg, settle_s, st.steps, sim.t / 3600.0, st.accepted, st.benign_steps, st.max_err_deg,
            st.max_benign_err_deg, st.benign_steps ? st.sum_benign_err_deg / (double)st.benign_steps : 0.0,
-           st.min_pivot, (unsigned)f.diag.cov_repairs, (unsigned)f.diag.remaps, (unsigned)f.diag.rejected,
-           (unsigned)f.diag.gyro_gated, (unsigned)f.diag.accel_gated, (unsigned)f.diag.mag_gated,
-           (unsigned)f.diag.accel_skipped, (unsigned)f.diag.mag_skipped, st.saturated, st.dropouts, st.bad_inputs);
+           st.min_pivot, (unsigned)att_diag(&f)->cov_repairs, (unsigned)att_diag(&f)->remaps, (unsigned)att_diag(&f)->rejected,
+           (unsigned)att_diag(&f)->gyro_gated, (unsigned)att_diag(&f)->accel_gated, (unsigned)att_diag(&f)->mag_gated,
+           (unsigned)att_diag(&f)->accel_skipped, (unsigned)att_diag(&f)->mag_skipped, st.saturated, st.dropouts, st.bad_inputs);
     printf(" segments=");
     for (i = 0; i < SEG_COUNT; ++i) {
         printf("%s%s:%llu", i ? "," : "", seg_names[i], st.segments[i]);
