@@ -94,7 +94,8 @@ ekf_status_t att_cov_update_tilt(att_cov_t *c, ekf_scalar_t x[ATT_N], ekf_scalar
  * d_j >= rel_margin P_jj > 0 (ekf_cov_is_pd), else 0. */
 int att_cov_is_pd(const att_cov_t *c, ekf_scalar_t rel_margin);
 /* The guard: if att_cov_is_pd fails, P is repaired by diagonal loading
- * (ekf_cov_ensure_pd). Returns the number of repair rounds, 0 if P passed. */
+ * (ekf_cov_ensure_pd); afterwards every P_ii >= var_floor. Returns the number of repair
+ * rounds, 0 if P passed, -1 with P unchanged if P has a non-finite entry. */
 int att_cov_ensure_pd(att_cov_t *c, ekf_scalar_t rel_margin, ekf_scalar_t var_floor);
 
 #ifdef __cplusplus
