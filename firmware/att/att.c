@@ -28,19 +28,10 @@ ekf_status_t att_init(att_ekf_t *f, const att_settings_t *settings)
     return EKF_OK;
 }
 
-/* ---- helpers shared by the stages (att_internal.h) ---- */
+/* ---- validation (before any write) ---- */
 
-ekf_status_t att_note(att_vars_t *v, ekf_status_t st)
-{
-    if (st == EKF_ERR_NUMERIC) {
-        ekf_count(&v->diag.numeric);
-    } else if (st != EKF_OK && st != EKF_GATED && st != EKF_SKIPPED) {
-        ekf_count(&v->diag.rejected);
-    }
-    return st;
-}
-
-ekf_status_t att_check_vec(const ekf_scalar_t vec[3], ekf_scalar_t range)
+/* Finite, every component within +-range. */
+static ekf_status_t check_vec(const ekf_scalar_t vec[3], ekf_scalar_t range)
 {
     int i;
     if (vec == NULL) {
@@ -59,7 +50,8 @@ ekf_status_t att_check_vec(const ekf_scalar_t vec[3], ekf_scalar_t range)
     return EKF_OK;
 }
 
-ekf_status_t att_check_dt(const att_settings_t *s, ekf_scalar_t dt)
+/* A time step in (0, dt_max]. */
+static ekf_status_t check_dt(const att_settings_t *s, ekf_scalar_t dt)
 {
     if (!ekf_isfinite(dt)) {
         return EKF_ERR_NOT_FINITE;
@@ -72,6 +64,36 @@ ekf_status_t att_check_dt(const att_settings_t *s, ekf_scalar_t dt)
     }
     return EKF_OK;
 }
+
+static int is_error(ekf_status_t st) { return st != EKF_OK && st != EKF_GATED && st != EKF_SKIPPED; }
+
+/* A refused call: its one error counter, nothing else. */
+static ekf_status_t refuse(att_ekf_t *f, ekf_status_t st)
+{
+    ekf_count(st == EKF_ERR_NUMERIC ? &f->vars.diag.numeric : &f->vars.diag.rejected);
+    return st;
+}
+
+/* ---- the working copy and the commit ----
+ * Every call that changes the filter runs its stages on a copy of the variables and
+ * replaces them only when the whole call succeeded, so that a refusal anywhere (bad input
+ * found before the copy, a numeric failure in the middle of a stage) leaves the filter
+ * exactly as it was but for its error counter (att.h). The copy is sizeof(att_vars_t)
+ * (docs/architecture.md, "Contract"): one struct assignment in, one out. */
+
+/* The end of every call that ran stages on the working copy w: the guard and a last
+ * finiteness check on w, then w replaces the variables. EKF_OK, or EKF_ERR_NUMERIC
+ * (counted; the filter unchanged). */
+static ekf_status_t commit(att_ekf_t *f, att_vars_t *w)
+{
+    if (att_guard_covariance(w, &f->settings) != EKF_OK || !ekf_all_finite(w->x, ATT_N)) {
+        return refuse(f, EKF_ERR_NUMERIC);
+    }
+    f->vars = *w;
+    return EKF_OK;
+}
+
+/* ---- helpers shared by the stages (att_internal.h) ---- */
 
 ekf_scalar_t att_norm3(const ekf_scalar_t vec[3])
 {
@@ -98,139 +120,271 @@ int att_normalise(att_vars_t *v)
     return 0;
 }
 
-/* Rounding in F P F^T and in the updates can make P indefinite when it is ill-conditioned
- * (Euler rates near gimbal lock at high rates, very long steps, float); repair it once
- * per public call, and say so (docs/derivation.md, "Covariance bounds"). */
-void att_guard_covariance(att_vars_t *v, const att_settings_t *s)
+/* Rounding in F P F^T and in the updates can make P indefinite when it is ill-conditioned;
+ * repair it once per public call, and say so (docs/derivation.md, "Covariance bounds"). */
+ekf_status_t att_guard_covariance(att_vars_t *v, const att_settings_t *s)
 {
+    int rounds;
     if ((v->flags & ATT_FLAG_ALIGNED) == 0u) {
-        return;
+        return EKF_OK;
     }
     /* The updates floor the variances they reduce, but the prediction can reduce one too
      * (F P F^T with a negative correlation, and no process noise on it if angle_walk = 0).
      * Raising a diagonal entry keeps P positive (semi-)definite. */
     att_cov_floor_diag(&v->cov, s->var_floor);
-    if (att_cov_ensure_pd(&v->cov, ATT_PD_MARGIN, s->var_floor) > 0) {
+    rounds = att_cov_ensure_pd(&v->cov, ATT_PD_MARGIN, s->var_floor);
+    if (rounds < 0) {
+        return EKF_ERR_NUMERIC; /* a non-finite P: nothing to repair */
+    }
+    if (rounds > 0) {
         v->flags |= ATT_FLAG_COV_REPAIRED;
         ekf_count(&v->diag.cov_repairs);
     } else {
         v->flags &= ~ATT_FLAG_COV_REPAIRED;
     }
+    return EKF_OK;
 }
 
 /* ---- public stages ---- */
 
 ekf_status_t att_align(att_ekf_t *f, const ekf_scalar_t accel[3], const ekf_scalar_t mag[3])
 {
+    att_vars_t w;
+    ekf_status_t st;
     if (f == NULL) {
         return EKF_ERR_NULL;
     }
-    return att_stage_align(&f->vars, &f->settings, accel, mag);
-}
-
-/* The public stages: each one leaves P positive definite. */
-static ekf_status_t guarded(att_ekf_t *f, ekf_status_t st)
-{
-    att_guard_covariance(&f->vars, &f->settings);
-    return st;
+    st = check_vec(accel, f->settings.accel_range);
+    if (st == EKF_OK && !att_align_has_gravity(&f->settings, accel)) {
+        st = EKF_ERR_RANGE; /* no usable gravity direction (free fall) */
+    }
+    if (st == EKF_OK && mag != NULL) {
+        st = check_vec(mag, f->settings.mag_range);
+    }
+    if (st != EKF_OK) {
+        return refuse(f, st);
+    }
+    w = f->vars;
+    (void)att_stage_align(&w, &f->settings, accel, mag);
+    return commit(f, &w);
 }
 
 ekf_status_t att_predict(att_ekf_t *f, ekf_scalar_t dt)
 {
+    att_vars_t w;
+    ekf_status_t st;
     if (f == NULL) {
         return EKF_ERR_NULL;
     }
-    return guarded(f, att_stage_predict(&f->vars, &f->settings, dt));
+    st = ((f->vars.flags & ATT_FLAG_ALIGNED) == 0u) ? EKF_ERR_NOT_INITIALISED : check_dt(&f->settings, dt);
+    if (st != EKF_OK) {
+        return refuse(f, st);
+    }
+    w = f->vars;
+    st = att_stage_predict(&w, &f->settings, dt);
+    if (is_error(st)) {
+        return refuse(f, st);
+    }
+    return (commit(f, &w) == EKF_OK) ? st : EKF_ERR_NUMERIC;
+}
+
+typedef ekf_status_t (*sensor_stage_t)(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t vec[3]);
+
+/* att_update_gyro, _accel, _mag: aligned filter, a valid vector, one stage. */
+static ekf_status_t public_update(att_ekf_t *f, const ekf_scalar_t vec[3], ekf_scalar_t range, sensor_stage_t stage)
+{
+    att_vars_t w;
+    ekf_status_t st;
+    if (f == NULL) {
+        return EKF_ERR_NULL;
+    }
+    st = ((f->vars.flags & ATT_FLAG_ALIGNED) == 0u) ? EKF_ERR_NOT_INITIALISED : check_vec(vec, range);
+    if (st != EKF_OK) {
+        return refuse(f, st);
+    }
+    w = f->vars;
+    st = stage(&w, &f->settings, vec);
+    if (is_error(st)) {
+        return refuse(f, st);
+    }
+    return (commit(f, &w) == EKF_OK) ? st : EKF_ERR_NUMERIC;
 }
 
 ekf_status_t att_update_gyro(att_ekf_t *f, const ekf_scalar_t gyro[3])
 {
-    if (f == NULL) {
-        return EKF_ERR_NULL;
-    }
-    return guarded(f, att_stage_gyro(&f->vars, &f->settings, gyro));
+    return public_update(f, gyro, (f != NULL) ? f->settings.gyro_range : EKF_C(0), att_stage_gyro);
 }
 
 ekf_status_t att_update_accel(att_ekf_t *f, const ekf_scalar_t accel[3])
 {
-    if (f == NULL) {
-        return EKF_ERR_NULL;
-    }
-    return guarded(f, att_stage_accel(&f->vars, &f->settings, accel));
+    return public_update(f, accel, (f != NULL) ? f->settings.accel_range : EKF_C(0), att_stage_accel);
 }
 
 ekf_status_t att_update_mag(att_ekf_t *f, const ekf_scalar_t mag[3])
 {
-    if (f == NULL) {
-        return EKF_ERR_NULL;
-    }
-    return guarded(f, att_stage_mag(&f->vars, &f->settings, mag));
+    return public_update(f, mag, (f != NULL) ? f->settings.mag_range : EKF_C(0), att_stage_mag);
 }
 
 /* ---- the step ---- */
 
+static void report_all(att_step_report_t *rep, ekf_status_t st)
+{
+    rep->predict = st;
+    rep->gyro = st;
+    rep->accel = st;
+    rep->mag = st;
+}
+
+/* The first error of the report (order predict, gyro, accel, mag), EKF_OK if none. */
+static ekf_status_t first_error(const att_step_report_t *rep)
+{
+    return is_error(rep->predict) ? rep->predict
+           : is_error(rep->gyro)  ? rep->gyro
+           : is_error(rep->accel) ? rep->accel
+           : is_error(rep->mag)   ? rep->mag
+                                  : EKF_OK;
+}
+
+/* Every input of the sample, before anything is written: the report gets each bad input's
+ * error in its slot, EKF_SKIPPED in every other slot. Returns the first error or EKF_OK. */
+static ekf_status_t validate_sample(const att_ekf_t *f, const att_sample_t *sm, att_step_report_t *rep)
+{
+    const att_settings_t *s = &f->settings;
+    const int aligned = (f->vars.flags & ATT_FLAG_ALIGNED) != 0u;
+    ekf_status_t st;
+    report_all(rep, EKF_SKIPPED);
+    if (aligned) {
+        rep->predict = check_dt(s, sm->dt); /* while aligning dt is not an input */
+    } else if ((sm->valid & ATT_HAS_ACCEL) == 0u) {
+        rep->accel = EKF_ERR_NOT_INITIALISED; /* nothing to align on */
+    }
+    if ((sm->valid & (ATT_HAS_GYRO | ATT_GYRO_SATURATED)) != 0u) {
+        rep->gyro = check_vec(sm->gyro, s->gyro_range);
+    }
+    if ((sm->valid & ATT_HAS_ACCEL) != 0u) {
+        rep->accel = check_vec(sm->accel, s->accel_range);
+    }
+    if ((sm->valid & ATT_HAS_MAG) != 0u) {
+        rep->mag = check_vec(sm->mag, s->mag_range);
+    }
+    st = first_error(rep);
+    if (st == EKF_OK) {
+        report_all(rep, EKF_OK); /* the stages fill it in */
+        return EKF_OK;
+    }
+    /* only the inputs at fault keep their error */
+    if (!is_error(rep->predict)) {
+        rep->predict = EKF_SKIPPED;
+    }
+    if (!is_error(rep->gyro)) {
+        rep->gyro = EKF_SKIPPED;
+    }
+    if (!is_error(rep->accel)) {
+        rep->accel = EKF_SKIPPED;
+    }
+    if (!is_error(rep->mag)) {
+        rep->mag = EKF_SKIPPED;
+    }
+    return st;
+}
+
+/* A numeric failure in stage *slot: the whole step is discarded. */
+static ekf_status_t discard(att_ekf_t *f, att_step_report_t *rep, ekf_status_t *slot)
+{
+    report_all(rep, EKF_SKIPPED);
+    *slot = EKF_ERR_NUMERIC;
+    return refuse(f, EKF_ERR_NUMERIC);
+}
+
+/* The gyroscope stage of a sample: a saturated reading widens the rate uncertainty, a
+ * normal one is fused. */
+static ekf_status_t gyro_stage(att_vars_t *w, const att_settings_t *s, const att_sample_t *sm)
+{
+    if ((sm->valid & ATT_GYRO_SATURATED) != 0u) {
+        return att_stage_gyro_saturated(w, s, sm->gyro);
+    }
+    if ((sm->valid & ATT_HAS_GYRO) != 0u) {
+        return att_stage_gyro(w, s, sm->gyro);
+    }
+    return EKF_OK;
+}
+
 ekf_status_t att_step(att_ekf_t *f, const att_sample_t *sample, att_step_report_t *report)
 {
-    att_step_report_t local = {EKF_OK, EKF_OK, EKF_OK, EKF_OK}; /* set below; initialised for the analysers */
+    att_step_report_t local;
     att_step_report_t *rep = (report != NULL) ? report : &local;
     const att_settings_t *s;
-    att_vars_t *v;
+    ekf_status_t *last = &rep->predict; /* the slot of the last stage that ran */
+    att_vars_t w;
     ekf_status_t st;
 
-    rep->predict = EKF_OK;
-    rep->gyro = EKF_OK;
-    rep->accel = EKF_OK;
-    rep->mag = EKF_OK;
     if (f == NULL || sample == NULL) {
-        return EKF_ERR_NULL;
+        report_all(rep, EKF_ERR_NULL);
+        return (f == NULL) ? EKF_ERR_NULL : refuse(f, EKF_ERR_NULL);
     }
     s = &f->settings;
-    v = &f->vars;
-    /* rest detection sees every complete sample, from the first one on, so that the
-     * initial rest already yields the gyroscope offset */
-    v->flags &= ~ATT_FLAG_AT_REST;
-    if ((sample->valid & (ATT_HAS_GYRO | ATT_HAS_ACCEL | ATT_GYRO_SATURATED)) == (ATT_HAS_GYRO | ATT_HAS_ACCEL) &&
-        att_check_dt(s, sample->dt) == EKF_OK && att_check_vec(sample->gyro, s->gyro_range) == EKF_OK &&
-        att_check_vec(sample->accel, s->accel_range) == EKF_OK &&
-        att_rest_update(&v->rest, &s->rest, sample->gyro, sample->accel, sample->dt)) {
-        v->flags |= ATT_FLAG_AT_REST;
-    }
-    if ((v->flags & ATT_FLAG_ALIGNED) == 0u) {
-        return att_stage_align_step(f, sample, rep);
-    }
-    st = att_check_dt(s, sample->dt);
+    st = validate_sample(f, sample, rep);
     if (st != EKF_OK) {
-        rep->predict = att_note(v, st);
-        return st;
+        return refuse(f, st);
     }
-    /* The gyro sample describes the rotation over the interval ending now: fuse it
-     * before propagating, so the angles integrate it (docs/derivation.md, "Step order"). */
-    if ((sample->valid & ATT_GYRO_SATURATED) != 0u) {
-        rep->gyro = att_stage_gyro_saturated(v, s, sample->gyro);
-    } else if ((sample->valid & ATT_HAS_GYRO) != 0u) {
-        rep->gyro = att_stage_gyro(v, s, sample->gyro);
+    w = f->vars;
+    /* rest detection sees every complete sample, from the first one on, so that the
+     * initial rest already yields the gyroscope offset; while aligning, only samples with
+     * a valid time step (the first one after a start has none) */
+    w.flags &= ~ATT_FLAG_AT_REST;
+    if ((sample->valid & (ATT_HAS_GYRO | ATT_HAS_ACCEL | ATT_GYRO_SATURATED)) == (ATT_HAS_GYRO | ATT_HAS_ACCEL) &&
+        check_dt(s, sample->dt) == EKF_OK &&
+        att_rest_update(&w.rest, &s->rest, sample->gyro, sample->accel, sample->dt)) {
+        w.flags |= ATT_FLAG_AT_REST;
     }
-    rep->predict = att_stage_predict(v, s, sample->dt);
-    if (rep->predict == EKF_OK) {
-        ekf_count(&v->diag.steps);
+    if ((w.flags & ATT_FLAG_ALIGNED) == 0u) {
+        /* averaging, then the alignment and the gyro of its last sample */
+        last = &rep->accel;
+        rep->accel = att_stage_align_sample(&w, s, sample);
+        if ((w.flags & ATT_FLAG_ALIGNED) != 0u) {
+            last = &rep->gyro;
+            rep->gyro = gyro_stage(&w, s, sample);
+            if (is_error(rep->gyro)) {
+                return discard(f, rep, &rep->gyro);
+            }
+        }
+    } else {
+        /* The gyro sample describes the rotation over the interval ending now: fuse it
+         * before propagating, so the angles integrate it (docs/derivation.md, "Step order"). */
+        rep->gyro = gyro_stage(&w, s, sample);
+        if (is_error(rep->gyro)) {
+            return discard(f, rep, &rep->gyro);
+        }
+        rep->predict = att_stage_predict(&w, s, sample->dt);
+        if (is_error(rep->predict)) {
+            return discard(f, rep, &rep->predict);
+        }
+        ekf_count(&w.diag.steps);
+        if ((sample->valid & ATT_HAS_ACCEL) != 0u) {
+            last = &rep->accel;
+            rep->accel = att_stage_accel(&w, s, sample->accel);
+            if (is_error(rep->accel)) {
+                return discard(f, rep, &rep->accel);
+            }
+        }
+        if ((sample->valid & ATT_HAS_MAG) != 0u) {
+            last = &rep->mag;
+            rep->mag = att_stage_mag(&w, s, sample->mag);
+            if (is_error(rep->mag)) {
+                return discard(f, rep, &rep->mag);
+            }
+        }
     }
-    if ((sample->valid & ATT_HAS_ACCEL) != 0u) {
-        rep->accel = att_stage_accel(v, s, sample->accel);
+    if (commit(f, &w) != EKF_OK) {
+        report_all(rep, EKF_SKIPPED);
+        *last = EKF_ERR_NUMERIC;
+        return EKF_ERR_NUMERIC;
     }
-    if ((sample->valid & ATT_HAS_MAG) != 0u) {
-        rep->mag = att_stage_mag(v, s, sample->mag);
-    }
-    att_guard_covariance(v, s);
-    if (rep->predict != EKF_OK) {
-        return rep->predict;
-    }
-    if (rep->gyro != EKF_OK) {
-        return rep->gyro;
-    }
-    if (rep->accel != EKF_OK) {
-        return rep->accel;
-    }
-    return rep->mag;
+    /* applied: the first non-OK stage (order predict, gyro, accel, mag), gated or skipped */
+    return (rep->predict != EKF_OK) ? rep->predict
+           : (rep->gyro != EKF_OK)  ? rep->gyro
+           : (rep->accel != EKF_OK) ? rep->accel
+                                    : rep->mag;
 }
 
 /* ---- outputs ---- */

@@ -19,8 +19,16 @@
  * Units: SI inside (rad, rad/s, m/s^2, s); the magnetometer in any unit (uT suggested),
  * used consistently with mag_range and mag_ref_norm. Frames: body to ENU (att_defs.h).
  *
- * Every function validates its input; an error leaves the filter exactly as it was and is
- * counted in att_diag_t. The filter never stores NaN or Inf.
+ * Contract of every call that changes the filter (att_init, att_align, att_step and the
+ * stages): it either succeeds, or it leaves the whole filter exactly as it was (state,
+ * covariance, flags, every counter and diagnostic, rest detector, low-pass, clocks) except
+ * its one error counter, diag.rejected (bad input) or diag.numeric (EKF_ERR_NUMERIC). Every
+ * input is validated before the first write, and the stages run on a working copy that
+ * replaces the filter's variables only when the whole call succeeded. EKF_GATED and
+ * EKF_SKIPPED are not errors: the call was applied. After every successful call P is
+ * symmetric positive definite with every variance >= var_floor (checked by the guard, and
+ * repaired if rounding broke it: diag.cov_repairs, ATT_FLAG_COV_REPAIRED). The filter never
+ * stores NaN or Inf. Outputs (att_get_*) only read.
  */
 #ifndef ATT_H
 #define ATT_H
@@ -126,8 +134,9 @@ typedef struct {
     uint32_t mag_gated;
     uint32_t accel_skipped;   /* samples not fused by policy (linear acceleration) */
     uint32_t mag_skipped;     /* samples not fused by policy (disturbance, gimbal lock) */
-    uint32_t rejected;        /* calls refused for bad input (status >= EKF_ERR_NULL and < EKF_GATED) */
-    uint32_t numeric;         /* updates refused with EKF_ERR_NUMERIC */
+    uint32_t rejected;        /* calls refused for bad input (an error status other than
+                                 EKF_ERR_NUMERIC; not for a NULL filter) */
+    uint32_t numeric;         /* calls refused with EKF_ERR_NUMERIC (the whole call discarded) */
     uint32_t remaps;          /* pitch remaps through +-90 deg */
     uint32_t cov_repairs;     /* calls after which P needed diagonal loading */
     uint32_t heading_resets;  /* heading set to the magnetic heading (mag_reset_time) */
@@ -190,7 +199,11 @@ typedef struct {
     uint8_t valid;         /* ATT_HAS_* bits, ATT_GYRO_SATURATED */
 } att_sample_t;
 
-/* Per-stage result of att_step. A stage whose sensor was absent reports EKF_OK. */
+/* Per-stage result of att_step. Applied sample: each stage's status, EKF_OK for a stage whose
+ * sensor was absent (and for predict while aligning). Refused sample: the slot of each bad
+ * input (dt: predict) holds its error, or the slot of the stage that failed numerically
+ * EKF_ERR_NUMERIC; every other slot EKF_SKIPPED (nothing was applied). A NULL filter or
+ * sample: EKF_ERR_NULL in every slot. */
 typedef struct {
     ekf_status_t predict;
     ekf_status_t gyro;
@@ -199,25 +212,34 @@ typedef struct {
 } att_step_report_t;
 
 /* Validates settings and resets the filter to "not aligned". EKF_ERR_SETTINGS if a setting
- * is out of range (the filter is then not usable until a successful att_init). */
+ * is out of range (f is not written: a filter never initialised stays unusable). */
 ekf_status_t att_init(att_ekf_t *f, const att_settings_t *settings);
 
 /* 0 if the settings are usable, else EKF_ERR_SETTINGS (or EKF_ERR_NULL). */
 ekf_status_t att_settings_check(const att_settings_t *s);
 
-/* Sets the attitude from one accelerometer sample (m/s^2) and optionally a magnetometer
- * sample (NULL: heading 0 with variance heading_var_max), rates zero; resets P. */
+/* Sets the attitude from one accelerometer sample (m/s^2; EKF_ERR_RANGE if its norm is
+ * below 0.1 g: no gravity direction) and optionally a magnetometer sample (NULL: heading 0
+ * with variance heading_var_max), rates zero; resets P. */
 ekf_status_t att_align(att_ekf_t *f, const ekf_scalar_t accel[3], const ekf_scalar_t mag[3]);
 
 /* One sample: align (first align_samples accelerometer samples) or gyro update, predict,
- * accelerometer and magnetometer updates. Returns EKF_OK if everything present was fused,
- * else the first non-OK stage status (order: predict, gyro, accel, mag); report (may be
- * NULL) gets every stage. A bad dt refuses the whole sample; a bad sensor vector refuses
- * only that sensor. While aligning, samples without accelerometer return
- * EKF_ERR_NOT_INITIALISED. */
+ * accelerometer and magnetometer updates. All or nothing: dt (once aligned; while aligning
+ * it is not an input, and the rest detector skips a sample without a valid one) and every
+ * present sensor vector are validated first, and any bad one (NULL, non-finite, out of
+ * range, dt <= 0 or > dt_max; while aligning, a sample without accelerometer:
+ * EKF_ERR_NOT_INITIALISED) refuses the whole sample, as does a numeric failure in any
+ * stage (EKF_ERR_NUMERIC). A caller that wants the rest of a sample with one bad sensor
+ * clears that sensor's bit and calls again (firmware/app does, and counts it).
+ * Returns: refused, the first error in the report (order predict, gyro, accel, mag);
+ * applied, EKF_OK if everything present was fused, else the first non-OK stage status
+ * (EKF_GATED or EKF_SKIPPED). report (may be NULL): see att_step_report_t. If the averaged
+ * alignment samples have no usable gravity direction, the averaging restarts (EKF_SKIPPED
+ * for accel, diag.accel_skipped). */
 ekf_status_t att_step(att_ekf_t *f, const att_sample_t *sample, att_step_report_t *report);
 
-/* The stages (require an aligned filter; EKF_ERR_NOT_INITIALISED otherwise). */
+/* The stages, one call each (require an aligned filter; EKF_ERR_NOT_INITIALISED
+ * otherwise), under the same contract. */
 ekf_status_t att_predict(att_ekf_t *f, ekf_scalar_t dt);
 ekf_status_t att_update_gyro(att_ekf_t *f, const ekf_scalar_t gyro[3]);
 ekf_status_t att_update_accel(att_ekf_t *f, const ekf_scalar_t accel[3]);

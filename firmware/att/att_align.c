@@ -7,6 +7,7 @@
 #include "att_gen.h"
 #include "att_internal.h"
 #include "att_model.h"
+#include "ekf_util.h"
 
 ekf_status_t att_stage_align(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t accel[3],
                              const ekf_scalar_t mag[3])
@@ -17,22 +18,7 @@ ekf_status_t att_stage_align(att_vars_t *v, const att_settings_t *s, const ekf_s
     ekf_scalar_t g[9];
     ekf_scalar_t lev[3];
     ekf_scalar_t heading_var;
-    ekf_status_t st;
     int i, use_mag = 0;
-
-    st = att_check_vec(accel, s->accel_range);
-    if (st != EKF_OK) {
-        return att_note(v, st);
-    }
-    if (!(att_norm3(accel) > ekf_mul(EKF_C(0.1), s->gravity))) {
-        return att_note(v, EKF_ERR_RANGE); /* no usable gravity direction (free fall) */
-    }
-    if (mag != NULL) {
-        st = att_check_vec(mag, s->mag_range);
-        if (st != EKF_OK) {
-            return att_note(v, st);
-        }
-    }
 
     /* roll and pitch from the gravity direction: a = g (-sin th, sin ph cos th, cos ph cos th) */
     x[ATT_PHI] = ekf_atan2(accel[1], accel[2]);
@@ -94,31 +80,21 @@ ekf_status_t att_stage_align(att_vars_t *v, const att_settings_t *s, const ekf_s
     return EKF_OK;
 }
 
-ekf_status_t att_stage_align_step(att_ekf_t *f, const att_sample_t *sm, att_step_report_t *rep)
+int att_align_has_gravity(const att_settings_t *s, const ekf_scalar_t accel[3])
 {
-    const att_settings_t *s = &f->settings;
-    att_vars_t *v = &f->vars;
-    ekf_status_t st;
-    int i;
-    if ((sm->valid & ATT_HAS_ACCEL) == 0u) {
-        rep->accel = att_note(v, EKF_ERR_NOT_INITIALISED);
-        return rep->accel;
-    }
-    st = att_check_vec(sm->accel, s->accel_range);
-    if (st != EKF_OK) {
-        rep->accel = att_note(v, st);
-        return st;
-    }
+    return att_norm3(accel) > ekf_mul(EKF_C(0.1), s->gravity);
+}
+
+ekf_status_t att_stage_align_sample(att_vars_t *v, const att_settings_t *s, const att_sample_t *sm)
+{
+    ekf_scalar_t acc[3], mag[3];
+    ekf_scalar_t na, nm;
+    int i, use_mag;
     if ((sm->valid & ATT_HAS_MAG) != 0u) {
-        rep->mag = att_check_vec(sm->mag, s->mag_range);
-        if (rep->mag == EKF_OK) {
-            for (i = 0; i < 3; ++i) {
-                v->align_mag[i] = ekf_add(v->align_mag[i], sm->mag[i]);
-            }
-            ++v->align_mag_count;
-        } else {
-            (void)att_note(v, rep->mag);
+        for (i = 0; i < 3; ++i) {
+            v->align_mag[i] = ekf_add(v->align_mag[i], sm->mag[i]);
         }
+        ++v->align_mag_count;
     }
     for (i = 0; i < 3; ++i) {
         v->align_acc[i] = ekf_add(v->align_acc[i], sm->accel[i]);
@@ -127,23 +103,22 @@ ekf_status_t att_stage_align_step(att_ekf_t *f, const att_sample_t *sm, att_step
     if (v->align_count < s->align_samples) {
         return EKF_OK;
     }
-    {
-        ekf_scalar_t acc[3], mag[3];
-        const ekf_scalar_t na = ekf_from_int((int32_t)v->align_count);
-        const ekf_scalar_t nm = ekf_from_int((int32_t)v->align_mag_count);
-        for (i = 0; i < 3; ++i) {
-            acc[i] = ekf_div(v->align_acc[i], na);
-            mag[i] = (v->align_mag_count > 0u) ? ekf_div(v->align_mag[i], nm) : EKF_C(0);
-            v->align_acc[i] = EKF_C(0);
-            v->align_mag[i] = EKF_C(0);
-        }
-        v->align_count = 0u;
-        st = att_align(f, acc, (v->align_mag_count > 0u) ? mag : NULL);
-        v->align_mag_count = 0u;
-        rep->accel = st;
-        if (st == EKF_OK && (sm->valid & ATT_HAS_GYRO) != 0u && att_check_vec(sm->gyro, s->gyro_range) == EKF_OK) {
-            rep->gyro = att_update_gyro(f, sm->gyro);
-        }
+    na = ekf_from_int((int32_t)v->align_count);
+    nm = ekf_from_int((int32_t)v->align_mag_count);
+    use_mag = v->align_mag_count > 0u;
+    for (i = 0; i < 3; ++i) {
+        acc[i] = ekf_div(v->align_acc[i], na);
+        mag[i] = use_mag ? ekf_div(v->align_mag[i], nm) : EKF_C(0);
+        v->align_acc[i] = EKF_C(0);
+        v->align_mag[i] = EKF_C(0);
     }
-    return st;
+    v->align_count = 0u;
+    v->align_mag_count = 0u;
+    if (!att_align_has_gravity(s, acc)) {
+        /* the samples averaged to no usable gravity direction (the sensor was thrown or
+         * turned over while aligning): start the average again from the next sample */
+        ekf_count(&v->diag.accel_skipped);
+        return EKF_SKIPPED;
+    }
+    return att_stage_align(v, s, acc, use_mag ? mag : NULL);
 }

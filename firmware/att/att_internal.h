@@ -28,12 +28,6 @@ enum { ATT_SENSOR_GYRO = 0, ATT_SENSOR_ACCEL = 1, ATT_SENSOR_MAG = 2 };
 
 /* ---- helpers (att.c) ---- */
 
-/* Counts a refused call in the diagnostics and passes the status through. */
-ekf_status_t att_note(att_vars_t *v, ekf_status_t st);
-/* Finite, every component within +-range: EKF_OK, EKF_ERR_NULL, _NOT_FINITE or _RANGE. */
-ekf_status_t att_check_vec(const ekf_scalar_t vec[3], ekf_scalar_t range);
-/* A time step in (0, dt_max]: EKF_OK, EKF_ERR_NOT_FINITE, _DT_NONPOSITIVE or _DT_TOO_LARGE. */
-ekf_status_t att_check_dt(const att_settings_t *s, ekf_scalar_t dt);
 /* |vec|. */
 ekf_scalar_t att_norm3(const ekf_scalar_t vec[3]);
 /* ATT_FLAG_GIMBAL_LOCK from the pitch. */
@@ -41,8 +35,10 @@ void att_update_gimbal_flag(att_vars_t *v, const att_settings_t *s);
 /* Angles into their ranges (att_model_normalise), the covariance remapped with them.
  * Returns 1 if the pitch passed +-90 deg (remap). */
 int att_normalise(att_vars_t *v);
-/* The definiteness guard at the end of a call (docs/derivation.md, "Covariance bounds"). */
-void att_guard_covariance(att_vars_t *v, const att_settings_t *s);
+/* The definiteness guard at the end of a call (docs/derivation.md, "Covariance bounds"):
+ * floors the variances, repairs P if needed (counted, ATT_FLAG_COV_REPAIRED). EKF_OK, or
+ * EKF_ERR_NUMERIC if P is not finite (the call is then refused). */
+ekf_status_t att_guard_covariance(att_vars_t *v, const att_settings_t *s);
 
 /* ---- magnetic reference (att_update.c) ---- */
 
@@ -53,16 +49,24 @@ ekf_scalar_t att_mag_heading(const att_settings_t *s, const ekf_scalar_t lev[3])
 /* Dip of a levelled field vector, rad, positive when the field points down. */
 ekf_scalar_t att_mag_dip(const ekf_scalar_t lev[3]);
 
-/* ---- stages ---- */
+/* ---- stages ----
+ * A stage's inputs are validated by its caller (att.c) before the stage runs, on the
+ * call's working copy v. A stage returns EKF_OK, EKF_GATED or EKF_SKIPPED, or
+ * EKF_ERR_NUMERIC after which v is discarded (it may be half-updated). */
 
-/* att_align.c: alignment from one accelerometer (and magnetometer, may be NULL) sample,
- * and the averaging phase of att_step before it. */
+/* att_align.c: the alignment from one accelerometer sample with a usable gravity
+ * direction (att_align_has_gravity) and a magnetometer sample (may be NULL). */
 ekf_status_t att_stage_align(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t accel[3],
                              const ekf_scalar_t mag[3]);
-ekf_status_t att_stage_align_step(att_ekf_t *f, const att_sample_t *sm, att_step_report_t *rep);
-/* att_predict.c */
+/* 1 if |accel| is large enough to give the gravity direction (not free fall). */
+int att_align_has_gravity(const att_settings_t *s, const ekf_scalar_t accel[3]);
+/* One sample (with accelerometer) of the averaging phase before the alignment, which it
+ * runs after align_samples of them: EKF_OK, or EKF_SKIPPED if the average has no usable
+ * gravity direction (the averaging restarts, diag.accel_skipped). */
+ekf_status_t att_stage_align_sample(att_vars_t *v, const att_settings_t *s, const att_sample_t *sm);
+/* att_predict.c: dt in (0, dt_max], aligned filter. */
 ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scalar_t dt);
-/* att_update.c */
+/* att_update.c: aligned filter, the vector finite and within its range. */
 ekf_status_t att_stage_gyro(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t gyro[3]);
 ekf_status_t att_stage_gyro_saturated(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t gyro[3]);
 ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t accel[3]);

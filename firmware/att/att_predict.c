@@ -82,24 +82,15 @@ ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scala
     ekf_scalar_t d[ATT_GEN_F_NNZ];
     ekf_scalar_t g[9];
     att_trig_t tm, tn;
-    ekf_status_t st;
     int i;
-
-    if ((v->flags & ATT_FLAG_ALIGNED) == 0u) {
-        return att_note(v, EKF_ERR_NOT_INITIALISED);
-    }
-    st = att_check_dt(s, dt);
-    if (st != EKF_OK) {
-        return att_note(v, st);
-    }
 
     att_model_transition(v->x, NULL, dt, s->gimbal_limit, xn, &tm, &tn);
     if (!ekf_all_finite(xn, ATT_N)) {
-        return att_note(v, EKF_ERR_NUMERIC);
+        return EKF_ERR_NUMERIC;
     }
     att_gen_transition_jacobian(&tm, &tn, v->x, dt, d);
     if (!ekf_all_finite(d, ATT_GEN_F_NNZ)) {
-        return att_note(v, EKF_ERR_NUMERIC);
+        return EKF_ERR_NUMERIC;
     }
     att_cov_propagate(&v->cov, d);
 

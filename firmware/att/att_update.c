@@ -68,13 +68,8 @@ ekf_status_t att_stage_gyro_saturated(att_vars_t *v, const att_settings_t *s, co
 {
     ekf_scalar_t g[9], extra[3], var;
     att_trig_t t;
-    ekf_status_t st;
     int i;
 
-    st = att_check_vec(gyro, s->gyro_range);
-    if (st != EKF_OK) {
-        return att_note(v, st);
-    }
     var = ekf_sq(ekf_max(ekf_max(ekf_abs(gyro[0]), ekf_abs(gyro[1])), ekf_abs(gyro[2])));
     for (i = 0; i < 3; ++i) {
         extra[i] = ekf_max(ekf_sub(var, att_cov_var(&v->cov, ATT_P + i)), EKF_C(0));
@@ -93,13 +88,6 @@ ekf_status_t att_stage_gyro(att_vars_t *v, const att_settings_t *s, const ekf_sc
     ekf_innov_t info;
     int i, gated = 0, bypass_failed = 0;
 
-    if ((v->flags & ATT_FLAG_ALIGNED) == 0u) {
-        return att_note(v, EKF_ERR_NOT_INITIALISED);
-    }
-    st = att_check_vec(gyro, s->gyro_range);
-    if (st != EKF_OK) {
-        return att_note(v, st);
-    }
     gate = gate_for(v, s, ATT_SENSOR_GYRO, s->gyro_gate);
     r_var = ekf_sq(s->gyro_noise);
     for (i = 0; i < 3; ++i) {
@@ -111,7 +99,7 @@ ekf_status_t att_stage_gyro(att_vars_t *v, const att_settings_t *s, const ekf_sc
             gated = 1;
             ekf_count(&v->diag.gyro_gated);
         } else if (st != EKF_OK) {
-            return att_note(v, st);
+            return st; /* EKF_ERR_NUMERIC: the call discards its working copy */
         } else {
             ekf_count(&v->diag.gyro_fused);
             bypass_failed |= fails_gate(&info, s->gyro_gate);
@@ -153,13 +141,6 @@ ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_s
     ekf_innov_t info;
     int i, gated = 0, bypass_failed = 0, consistent = 1;
 
-    if ((v->flags & ATT_FLAG_ALIGNED) == 0u) {
-        return att_note(v, EKF_ERR_NOT_INITIALISED);
-    }
-    st = att_check_vec(accel, s->accel_range);
-    if (st != EKF_OK) {
-        return att_note(v, st);
-    }
     v->tilt_ok = 0u; /* until this update shows otherwise */
     norm = att_norm3(accel);
     err = ekf_abs(ekf_sub(norm, s->gravity));
@@ -236,10 +217,7 @@ ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_s
             gated = 1;
             ekf_count(&v->diag.accel_gated);
         } else if (st != EKF_OK) {
-            if (att_normalise(v)) {
-                ekf_count(&v->diag.remaps);
-            }
-            return att_note(v, st);
+            return st; /* EKF_ERR_NUMERIC: the call discards its working copy */
         } else {
             ekf_count(&v->diag.accel_fused);
         }
@@ -294,13 +272,6 @@ ekf_status_t att_stage_mag(att_vars_t *v, const att_settings_t *s, const ekf_sca
     ekf_status_t st;
     ekf_innov_t info;
 
-    if ((v->flags & ATT_FLAG_ALIGNED) == 0u) {
-        return att_note(v, EKF_ERR_NOT_INITIALISED);
-    }
-    st = att_check_vec(mag, s->mag_range);
-    if (st != EKF_OK) {
-        return att_note(v, st);
-    }
     v->flags &= ~(ATT_FLAG_MAG_DISTURBED | ATT_FLAG_HEADING_HELD | ATT_FLAG_MAG_GATED);
     if ((v->flags & ATT_FLAG_GIMBAL_LOCK) != 0u) {
         /* heading is ill-defined next to theta = +-90 deg: hold it */
@@ -370,7 +341,7 @@ ekf_status_t att_stage_mag(att_vars_t *v, const att_settings_t *s, const ekf_sca
         return EKF_GATED;
     }
     if (st != EKF_OK) {
-        return att_note(v, st);
+        return st; /* EKF_ERR_NUMERIC: the call discards its working copy */
     }
     ekf_count(&v->diag.mag_fused);
     gate_result(v, s, ATT_SENSOR_MAG, 0);

@@ -544,8 +544,9 @@ static void test_every_bad_input_class_leaves_state_unchanged(void)
     TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_step(&f, NULL, NULL));
     TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_step(NULL, NULL, NULL));
     assert_unchanged(&f, &s);
-    /* 5 dt + 3*(3+3+1+3) + 3 NULL sensor calls; att_step(NULL...) cannot count */
-    TEST_ASSERT_EQUAL_UINT32(rejected + 5u + 30u + 3u, att_diag(&f)->rejected);
+    /* 5 dt + 3*(3+3+1+3) + 3 NULL sensor calls + the NULL sample; att_step(NULL...)
+     * cannot count */
+    TEST_ASSERT_EQUAL_UINT32(rejected + 5u + 30u + 3u + 1u, att_diag(&f)->rejected);
 
     /* a bad dt refuses the whole sample, state unchanged */
     {
@@ -557,14 +558,32 @@ static void test_every_bad_input_class_leaves_state_unchanged(void)
         TEST_ASSERT_EQUAL_INT(EKF_ERR_DT_NONPOSITIVE, att_step(&f, &smp, &rep));
         TEST_ASSERT_EQUAL_INT(EKF_ERR_DT_NONPOSITIVE, rep.predict);
         assert_unchanged(&f, &s);
-        /* a bad magnetometer alone: gyro and accel still fused, mag refused, state valid */
+        TEST_ASSERT_EQUAL_INT(EKF_SKIPPED, rep.gyro);
+        TEST_ASSERT_EQUAL_INT(EKF_SKIPPED, rep.accel);
+        TEST_ASSERT_EQUAL_INT(EKF_SKIPPED, rep.mag);
+        /* a bad magnetometer alone refuses the whole sample too: the report names it, the
+         * filter (every byte but diag.rejected) is as it was */
         smp.dt = EKF_C(0.01);
         smp.mag[1] = nan_v;
-        TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, att_step(&f, &smp, &rep));
+        {
+            att_ekf_t before;
+            memcpy(&before, &f, sizeof f);
+            TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, att_step(&f, &smp, &rep));
+            TEST_ASSERT_EQUAL_INT(EKF_SKIPPED, rep.gyro);
+            TEST_ASSERT_EQUAL_INT(EKF_SKIPPED, rep.predict);
+            TEST_ASSERT_EQUAL_INT(EKF_SKIPPED, rep.accel);
+            TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, rep.mag);
+            ++before.vars.diag.rejected;
+            TEST_ASSERT_EQUAL_MEMORY(&before, &f, sizeof f);
+        }
+        /* the caller clears the bad sensor's bit and calls again: the rest of the sample
+         * is applied */
+        smp.valid &= (uint8_t)~ATT_HAS_MAG;
+        TEST_ASSERT_EQUAL_INT(EKF_OK, att_step(&f, &smp, &rep));
         TEST_ASSERT_EQUAL_INT(EKF_OK, rep.gyro);
         TEST_ASSERT_EQUAL_INT(EKF_OK, rep.predict);
         TEST_ASSERT_EQUAL_INT(EKF_OK, rep.accel);
-        TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, rep.mag);
+        TEST_ASSERT_EQUAL_INT(EKF_OK, rep.mag);
         TEST_ASSERT_TRUE(ekf_all_finite(att_state(&f), ATT_N));
         att_get_covariance(&f, s.P);
         TEST_ASSERT_TRUE(ts_is_positive_definite(s.P, ATT_N, NULL));

@@ -26,6 +26,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
      ATT_FLAG_MAG_GATED | ATT_FLAG_GATE_BYPASS | ATT_FLAG_HEADING_LIMITED | ATT_FLAG_REMAPPED |        \
      ATT_FLAG_COV_REPAIRED | ATT_FLAG_AT_REST)
 
+static int is_error(ekf_status_t st) { return st != EKF_OK && st != EKF_GATED && st != EKF_SKIPPED; }
+
 static int pos_def(const ekf_scalar_t *P)
 {
     double L[ATT_N][ATT_N];
@@ -156,7 +158,17 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         FZ_CHECK(ekf_all_finite(att_state(&f), ATT_N), "non-finite state at step %d", steps);
         FZ_CHECK((att_flags(&f) & ~FLAG_ALL) == 0u, "flags 0x%x: a bit att.h does not define (new flag? add it to FLAG_ALL)",
                  (unsigned)att_flags(&f));
-        if (was_aligned) {
+        if (is_error(st)) {
+            /* refused: the first error of the report, every other slot skipped */
+            const ekf_status_t first = is_error(rep.predict) ? rep.predict
+                                       : is_error(rep.gyro)  ? rep.gyro
+                                       : is_error(rep.accel) ? rep.accel
+                                                             : rep.mag;
+            FZ_CHECK(st == first, "status %d, first error %d", (int)st, (int)first);
+            FZ_CHECK((is_error(rep.predict) || rep.predict == EKF_SKIPPED) && (is_error(rep.gyro) || rep.gyro == EKF_SKIPPED) &&
+                         (is_error(rep.accel) || rep.accel == EKF_SKIPPED) && (is_error(rep.mag) || rep.mag == EKF_SKIPPED),
+                     "refused sample with a stage reported as run");
+        } else if (was_aligned) {
             const ekf_status_t first = rep.predict != EKF_OK ? rep.predict
                                        : rep.gyro != EKF_OK  ? rep.gyro
                                        : rep.accel != EKF_OK ? rep.accel
