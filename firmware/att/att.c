@@ -121,7 +121,8 @@ int att_normalise(att_vars_t *v)
 }
 
 /* Rounding in F P F^T and in the updates can make P indefinite when it is ill-conditioned;
- * repair it once per public call, and say so (docs/derivation.md, "Covariance bounds"). */
+ * repair it once per public call, and say so; refuse what rounding cannot explain
+ * (docs/derivation.md, "Covariance bounds"). */
 ekf_status_t att_guard_covariance(att_vars_t *v, const att_settings_t *s)
 {
     int rounds;
@@ -131,7 +132,9 @@ ekf_status_t att_guard_covariance(att_vars_t *v, const att_settings_t *s)
     /* The updates floor the variances they reduce, but the prediction can reduce one too
      * (F P F^T with a negative correlation, and no process noise on it if angle_walk = 0).
      * Raising a diagonal entry keeps P positive (semi-)definite. */
-    att_cov_floor_diag(&v->cov, s->var_floor);
+    if (att_cov_floor_diag(&v->cov, s->var_floor) != 0) {
+        return EKF_ERR_NUMERIC; /* a variance negative beyond rounding: P is indefinite */
+    }
     rounds = att_cov_ensure_pd(&v->cov, ATT_PD_MARGIN, s->var_floor);
     if (rounds < 0) {
         return EKF_ERR_NUMERIC; /* a non-finite P: nothing to repair */

@@ -49,10 +49,11 @@ typedef struct {
     /* process model */
     ekf_scalar_t rate_walk;       /* body-rate random walk, rad/s/sqrt(s): Var(dw) = rate_walk^2 dt */
     ekf_scalar_t angle_walk;      /* extra angle random walk, rad/sqrt(s) (model error) */
-    ekf_scalar_t euler_rate_rel;  /* independent error of the Euler-rate states per step, as a
-                                     fraction of their variance (dimensionless, > 0): the model
-                                     error of the discrete kinematics; keeps P well conditioned
-                                     (docs/derivation.md, "Conditioning") */
+    ekf_scalar_t euler_rate_rel;  /* independent error per step of each Euler-rate state and of
+                                     each angle's increment, as a fraction of its variance
+                                     (dimensionless, > 0): the model error of the discrete
+                                     kinematics; keeps P well conditioned (docs/derivation.md,
+                                     "Conditioning") */
     /* gyroscope */
     ekf_scalar_t gyro_noise; /* white noise, 1 sigma per sample, rad/s */
     ekf_scalar_t gyro_gate;  /* innovation gate, sigmas; 0 = off */

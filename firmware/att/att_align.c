@@ -51,7 +51,7 @@ ekf_status_t att_stage_align(att_vars_t *v, const att_settings_t *s, const ekf_s
     att_cov_scale_diag(&v->cov, ATT_PHID, 3, s->euler_rate_rel);
     /* the initial sigmas may be set below the variance floor: the floor holds from the
      * first step, like after every update */
-    att_cov_floor_diag(&v->cov, s->var_floor);
+    (void)att_cov_floor_diag(&v->cov, s->var_floor); /* every variance >= 0 here */
     /* atan2 can return +pi itself (a = (0, +0, -g), upside down): into [-pi, pi) like after
      * every other stage */
     (void)att_normalise(v);

@@ -50,19 +50,29 @@ void att_cov_to_full(const att_cov_t *c, ekf_scalar_t P[ATT_N * ATT_N]);
 /* P <- F P F^T with F = I + D, d: the values of D in the order of att_gen_f_pattern, all
  * finite (the caller checks). A congruence. */
 void att_cov_propagate(att_cov_t *c, const ekf_scalar_t d[ATT_GEN_F_NNZ]);
+/* The first-order variance of each angle's increment over the step, var[i] =
+ * (D P D^T)_ii for the rows ATT_PHI + i (i = 0, 1, 2) of D (d as for att_cov_propagate),
+ * evaluated on P before the propagation; >= 0 (rounding below zero is returned as 0). */
+void att_cov_increment_var(const att_cov_t *c, const ekf_scalar_t d[ATT_GEN_F_NNZ], ekf_scalar_t var[3]);
 /* P += G diag(var) G^T for the body-rate noise input (var[j] >= 0 per body axis j),
  * G = [I; 0; g] with g the Euler-rate block (row-major 3x3). Adds a positive
  * semi-definite matrix. */
 void att_cov_add_rate_noise(att_cov_t *c, const ekf_scalar_t g[9], const ekf_scalar_t var[3]);
 /* P_ii += var (>= 0) for i in first .. first+len-1. */
 void att_cov_add_diag(att_cov_t *c, int first, int len, ekf_scalar_t var);
+/* P_ii += var (>= 0) for the one state i. */
+void att_cov_add_var(att_cov_t *c, int i, ekf_scalar_t var);
 /* P_ii <- P_ii + rel P_ii (rel >= 0) for i in first .. first+len-1. */
 void att_cov_scale_diag(att_cov_t *c, int first, int len, ekf_scalar_t rel);
 
 /* ---- bounds and remaps ---- */
 
-/* P_ii <- max(P_ii, floor) for every i. Adds a positive semi-definite matrix. */
-void att_cov_floor_diag(att_cov_t *c, ekf_scalar_t floor);
+/* P_ii <- max(P_ii, floor) for every i (adds a positive semi-definite matrix), for
+ * variances that rounding left below the floor or small positive ones. Returns 0, or -1
+ * with P unchanged if a variance is negative beyond rounding (below -32 n eps times the
+ * largest variance; fixed point: -32 n LSB (1 + the largest variance)): P is indefinite,
+ * and no floor hides it (the caller refuses). */
+int att_cov_floor_diag(att_cov_t *c, ekf_scalar_t floor);
 /* Row and column i zero, P_ii = var (> 0): state i uncorrelated with the others (a reset).
  * Keeps P positive (semi-)definite. */
 void att_cov_reset_state(att_cov_t *c, int i, ekf_scalar_t var);

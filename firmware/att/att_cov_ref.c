@@ -40,6 +40,31 @@ void att_cov_propagate(att_cov_t *c, const ekf_scalar_t d[ATT_GEN_F_NNZ])
     att_gen_cov_propagate(c->P, d);
 }
 
+void att_cov_increment_var(const att_cov_t *c, const ekf_scalar_t d[ATT_GEN_F_NNZ], ekf_scalar_t var[3])
+{
+    int i, k, l;
+    for (i = 0; i < 3; ++i) {
+        var[i] = EKF_C(0);
+    }
+    /* the quadratic form of each angle row of D over the entries of P it touches */
+    for (k = 0; k < ATT_GEN_F_NNZ; ++k) {
+        const int row = att_gen_f_pattern[k].row;
+        ekf_scalar_t acc = EKF_C(0);
+        if (row < ATT_PHI || row > ATT_PSI) {
+            continue;
+        }
+        for (l = 0; l < ATT_GEN_F_NNZ; ++l) {
+            if (att_gen_f_pattern[l].row == row) {
+                acc = ekf_mac(acc, d[l], PIJ(c, att_gen_f_pattern[k].col, att_gen_f_pattern[l].col));
+            }
+        }
+        var[row - ATT_PHI] = ekf_mac(var[row - ATT_PHI], d[k], acc);
+    }
+    for (i = 0; i < 3; ++i) {
+        var[i] = ekf_max(var[i], EKF_C(0));
+    }
+}
+
 void att_cov_add_rate_noise(att_cov_t *c, const ekf_scalar_t g[9], const ekf_scalar_t var[3])
 {
     int i, j, k;
@@ -72,6 +97,8 @@ void att_cov_add_diag(att_cov_t *c, int first, int len, ekf_scalar_t var)
     }
 }
 
+void att_cov_add_var(att_cov_t *c, int i, ekf_scalar_t var) { PIJ(c, i, i) = ekf_add(PIJ(c, i, i), var); }
+
 void att_cov_scale_diag(att_cov_t *c, int first, int len, ekf_scalar_t rel)
 {
     int i;
@@ -80,12 +107,23 @@ void att_cov_scale_diag(att_cov_t *c, int first, int len, ekf_scalar_t rel)
     }
 }
 
-void att_cov_floor_diag(att_cov_t *c, ekf_scalar_t floor)
+int att_cov_floor_diag(att_cov_t *c, ekf_scalar_t floor)
 {
+    const ekf_scalar_t k = EKF_C(32 * ATT_N);
+    ekf_scalar_t top = EKF_C(0), low = EKF_C(0), tol;
     int i;
+    for (i = 0; i < ATT_N; ++i) {
+        top = ekf_max(top, PIJ(c, i, i));
+        low = ekf_min(low, PIJ(c, i, i));
+    }
+    tol = ekf_mac(ekf_mul(ekf_mul(k, EKF_SCALAR_EPS), top), ekf_mul(k, EKF_SCALAR_ABS_EPS), ekf_add(EKF_C(1), top));
+    if (low < ekf_neg(tol)) {
+        return -1;
+    }
     for (i = 0; i < ATT_N; ++i) {
         PIJ(c, i, i) = ekf_max(PIJ(c, i, i), floor);
     }
+    return 0;
 }
 
 void att_cov_reset_state(att_cov_t *c, int i, ekf_scalar_t var)

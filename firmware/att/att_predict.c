@@ -80,7 +80,7 @@ ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scala
 {
     ekf_scalar_t xn[ATT_N];
     ekf_scalar_t d[ATT_GEN_F_NNZ];
-    ekf_scalar_t g[9];
+    ekf_scalar_t g[9], inc_var[3];
     att_trig_t tm, tn;
     int i;
 
@@ -92,15 +92,21 @@ ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scala
     if (!ekf_all_finite(d, ATT_GEN_F_NNZ)) {
         return EKF_ERR_NUMERIC;
     }
+    att_cov_increment_var(&v->cov, d, inc_var);
     att_cov_propagate(&v->cov, d);
 
-    /* Q = G diag(rate_walk^2 dt) G^T + angle random walk + the Euler rates' own error */
+    /* Q = G diag(rate_walk^2 dt) G^T + angle random walk + the discrete kinematics' own
+     * error: independent, euler_rate_rel of the variance of each angle's increment and of
+     * each Euler rate (docs/derivation.md, "Conditioning") */
     att_gen_noise_jacobian(&tn, g);
     {
         const ekf_scalar_t q = ekf_mul(ekf_sq(s->rate_walk), dt), var[3] = {q, q, q};
         att_cov_add_rate_noise(&v->cov, g, var);
     }
     att_cov_add_diag(&v->cov, ATT_PHI, 3, ekf_mul(ekf_sq(s->angle_walk), dt));
+    for (i = 0; i < 3; ++i) {
+        att_cov_add_var(&v->cov, ATT_PHI + i, ekf_mul(s->euler_rate_rel, inc_var[i]));
+    }
     att_cov_scale_diag(&v->cov, ATT_PHID, 3, s->euler_rate_rel);
 
     for (i = 0; i < ATT_N; ++i) {
