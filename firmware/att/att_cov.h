@@ -69,15 +69,16 @@ void att_cov_scale_diag(att_cov_t *c, int first, int len, ekf_scalar_t rel);
 
 /* P_ii <- max(P_ii, floor) for every i (adds a positive semi-definite matrix), for
  * variances that rounding left below the floor or small positive ones. Returns 0, or -1
- * with P unchanged if a variance is negative beyond rounding (below -32 n eps times the
- * largest variance; fixed point: -32 n LSB (1 + the largest variance)): P is indefinite,
- * and no floor hides it (the caller refuses). */
+ * with P unchanged if a variance is not finite or negative beyond rounding (below -32 n eps
+ * times the largest variance; fixed point: -32 n LSB (1 + the largest variance)): no floor
+ * hides that (the caller refuses). */
 int att_cov_floor_diag(att_cov_t *c, ekf_scalar_t floor);
 /* Row and column i zero, P_ii = var (> 0): state i uncorrelated with the others (a reset).
  * Keeps P positive (semi-)definite. */
 void att_cov_reset_state(att_cov_t *c, int i, ekf_scalar_t var);
-/* If P_ii > max_var (> 0): row and column i scaled by sqrt(max_var / P_ii), a congruence
- * (an infinite P_ii: reset_state to max_var). Returns 1 if P was changed, else 0. */
+/* If P_ii > max_var (> 0): row and column i scaled by sqrt(max_var / P_ii), a congruence.
+ * Returns 1 if P was changed, else 0 (also for a non-finite P_ii, left for the guard to
+ * refuse). */
 int att_cov_limit_variance(att_cov_t *c, int i, ekf_scalar_t max_var);
 /* Row and column i negated (diagonal unchanged): the covariance of the state with x_i
  * replaced by -x_i, a congruence (the pitch remap, att_model_normalise). */

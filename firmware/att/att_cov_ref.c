@@ -113,6 +113,9 @@ int att_cov_floor_diag(att_cov_t *c, ekf_scalar_t floor)
     ekf_scalar_t top = EKF_C(0), low = EKF_C(0), tol;
     int i;
     for (i = 0; i < ATT_N; ++i) {
+        if (!ekf_isfinite(PIJ(c, i, i))) {
+            return -1;
+        }
         top = ekf_max(top, PIJ(c, i, i));
         low = ekf_min(low, PIJ(c, i, i));
     }
@@ -139,7 +142,7 @@ void att_cov_reset_state(att_cov_t *c, int i, ekf_scalar_t var)
 int att_cov_limit_variance(att_cov_t *c, int i, ekf_scalar_t max_var)
 {
     /* the test first: ekf_cov_limit_variance is called only when it has something to do */
-    if (!(PIJ(c, i, i) > max_var)) {
+    if (!(PIJ(c, i, i) > max_var) || !ekf_isfinite(PIJ(c, i, i))) {
         return 0;
     }
     return ekf_cov_limit_variance(c->P, ATT_N, (uint8_t)i, max_var);

@@ -308,19 +308,10 @@ int ekf_cov_limit_variance(ekf_scalar_t *P, uint8_t n, uint8_t i, ekf_scalar_t m
         return 0;
     }
     pii = P[(uint32_t)i * n + i];
-    if (!(pii > max_var)) {
+    if (!(pii > max_var) || !ekf_isfinite(pii)) {
+        /* (an overflowed variance has no scale: left for the caller's finiteness check to
+         * refuse, not reset to a bound that would hide the overflow) */
         return 0;
-    }
-    if (!ekf_isfinite(pii)) {
-        /* overflowed (a saturated fixed-point value, docs/fixed_point.md): no scale
-         * exists; reset the state's variance to the bound, uncorrelated (a principal block
-         * plus a positive diagonal entry: P stays positive semi-definite) */
-        for (j = 0; j < n; ++j) {
-            P[(uint32_t)i * n + j] = EKF_C(0);
-            P[(uint32_t)j * n + i] = EKF_C(0);
-        }
-        P[(uint32_t)i * n + i] = max_var;
-        return 1;
     }
     scale = ekf_sqrt(ekf_div(max_var, pii));
     for (j = 0; j < n; ++j) {

@@ -120,7 +120,8 @@ ekf_status_t ekf_update_scalar(ekf_scalar_t *x, ekf_scalar_t *P, uint8_t n, cons
  * Caps the variance of state i at max_var by scaling row and column i of P by
  * sqrt(max_var / P_ii) (a congruence: P stays positive semi-definite and symmetric).
  * Used for states the measurements cannot observe (heading without magnetometer), whose
- * variance would otherwise grow without bound. Returns 1 if P was changed, 0 if not.
+ * variance would otherwise grow without bound. Returns 1 if P was changed, 0 if not (also
+ * for a non-finite P_ii, which no scaling can bring back: P is left as it is).
  */
 int ekf_cov_limit_variance(ekf_scalar_t *P, uint8_t n, uint8_t i, ekf_scalar_t max_var);
 
