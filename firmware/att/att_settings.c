@@ -62,6 +62,42 @@ const att_settings_t att_default_settings = {
     .align_samples = 10u,
 };
 
+/* v^2 is finite and not zero in the build's scalar. */
+static int positive_square(ekf_scalar_t v)
+{
+    const ekf_scalar_t q = ekf_sq(v);
+    return ekf_isfinite(q) && q > EKF_C(0);
+}
+
+static int finite_square(ekf_scalar_t v) { return ekf_isfinite(ekf_sq(v)); }
+
+/* The variances and sums derived from the settings are representable in the build's
+ * scalar: no noise variance that rounds to zero (nothing would be fused, or a variance
+ * would be exact where it must not be), no bound or sum that saturates. Every setting in
+ * range passes in float and double; the fixed-point build refuses, for example, a
+ * gyro_noise of 1e-6 in Q29.34 (its square is below one LSB) or a var_floor that rounds to
+ * zero (docs/fixed_point.md). */
+static int representable(const att_settings_t *s)
+{
+    const ekf_scalar_t sec_lim = ekf_div(EKF_C(1), ekf_cos(s->gimbal_limit));
+    const ekf_scalar_t n = ekf_from_int((int32_t)s->align_samples);
+    const ekf_scalar_t r_accel = ekf_div(ekf_sq(s->accel_noise), ekf_sq(s->gravity));
+    return s->var_floor > EKF_C(0) && positive_square(s->rate_walk) && positive_square(s->gyro_noise) &&
+           positive_square(s->accel_noise) && positive_square(s->mag_heading_noise) &&
+           ekf_isfinite(r_accel) && r_accel > EKF_C(0) &&
+           (s->angle_walk == EKF_C(0) || positive_square(s->angle_walk)) &&
+           positive_square(s->init_tilt_sigma) && positive_square(s->init_heading_sigma) &&
+           positive_square(s->init_rate_sigma) && positive_square(s->rest.rest_gyro) &&
+           positive_square(s->rest.rest_accel) && finite_square(s->gravity) &&
+           finite_square(s->gyro_gate) && finite_square(s->accel_gate) && finite_square(s->mag_gate) &&
+           /* the Euler-rate variance bound (att_predict.c) and the norms of the sensor vectors */
+           finite_square(ekf_mul(s->gyro_range, ekf_add(EKF_C(1), ekf_mul(EKF_C(2), sec_lim)))) &&
+           ekf_isfinite(ekf_mul(EKF_C(3), ekf_sq(s->accel_range))) &&
+           ekf_isfinite(ekf_mul(EKF_C(3), ekf_sq(s->mag_range))) &&
+           /* the sums of the alignment average */
+           ekf_isfinite(ekf_mul(n, s->accel_range)) && ekf_isfinite(ekf_mul(n, s->mag_range));
+}
+
 ekf_status_t att_settings_check(const att_settings_t *s)
 {
     const ekf_scalar_t big = EKF_C(1e6);
@@ -91,7 +127,8 @@ ekf_status_t att_settings_check(const att_settings_t *s)
         !ekf_in_range(s->init_rate_sigma, EKF_C(1e-6), big) || s->align_samples == 0u ||
         !ekf_in_range(s->rest.rest_gyro, EKF_C(1e-6), big) || !ekf_in_range(s->rest.rest_accel, EKF_C(1e-6), big) ||
         !ekf_in_range(s->rest.rest_time, EKF_C(0), big) || !ekf_in_range(s->rest.rest_tau, EKF_C(0), big) ||
-        !ekf_in_range(s->rest.bias_tau, EKF_C(0), big) || !ekf_in_range(s->rest.bias_max, EKF_C(0), s->gyro_range)) {
+        !ekf_in_range(s->rest.bias_tau, EKF_C(0), big) || !ekf_in_range(s->rest.bias_max, EKF_C(0), s->gyro_range) ||
+        !representable(s)) {
         return EKF_ERR_SETTINGS;
     }
     return EKF_OK;
