@@ -133,7 +133,7 @@ ekf_status_t att_guard_covariance(att_vars_t *v, const att_settings_t *s)
      * (F P F^T with a negative correlation, and no process noise on it if angle_walk = 0).
      * Raising a diagonal entry keeps P positive (semi-)definite. */
     if (att_cov_floor_diag(&v->cov, s->var_floor) != 0) {
-        return EKF_ERR_NUMERIC; /* a variance negative beyond rounding: P is indefinite */
+        return EKF_ERR_NUMERIC; /* a variance not finite, or negative beyond rounding */
     }
     rounds = att_cov_ensure_pd(&v->cov, ATT_PD_MARGIN, s->var_floor);
     if (rounds < 0) {

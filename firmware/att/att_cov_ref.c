@@ -42,26 +42,31 @@ void att_cov_propagate(att_cov_t *c, const ekf_scalar_t d[ATT_GEN_F_NNZ])
 
 void att_cov_increment_var(const att_cov_t *c, const ekf_scalar_t d[ATT_GEN_F_NNZ], ekf_scalar_t var[3])
 {
-    int i, k, l;
+    int k = 0, i;
     for (i = 0; i < 3; ++i) {
         var[i] = EKF_C(0);
     }
-    /* the quadratic form of each angle row of D over the entries of P it touches */
-    for (k = 0; k < ATT_GEN_F_NNZ; ++k) {
+    /* the pattern is sorted by row: the quadratic form of each angle row of D over the
+     * entries of P its columns select (7, 4 and 6 entries) */
+    while (k < ATT_GEN_F_NNZ && att_gen_f_pattern[k].row <= ATT_PSI) {
         const int row = att_gen_f_pattern[k].row;
-        ekf_scalar_t acc = EKF_C(0);
-        if (row < ATT_PHI || row > ATT_PSI) {
-            continue;
+        int end = k, a, b;
+        ekf_scalar_t v = EKF_C(0);
+        while (end < ATT_GEN_F_NNZ && att_gen_f_pattern[end].row == row) {
+            ++end;
         }
-        for (l = 0; l < ATT_GEN_F_NNZ; ++l) {
-            if (att_gen_f_pattern[l].row == row) {
-                acc = ekf_mac(acc, d[l], PIJ(c, att_gen_f_pattern[k].col, att_gen_f_pattern[l].col));
+        for (a = k; a < end; ++a) {
+            const ekf_scalar_t *pa = &c->P[att_gen_f_pattern[a].col * ATT_N];
+            ekf_scalar_t acc = EKF_C(0);
+            for (b = k; b < end; ++b) {
+                acc = ekf_mac(acc, d[b], pa[att_gen_f_pattern[b].col]);
             }
+            v = ekf_mac(v, d[a], acc);
         }
-        var[row - ATT_PHI] = ekf_mac(var[row - ATT_PHI], d[k], acc);
-    }
-    for (i = 0; i < 3; ++i) {
-        var[i] = ekf_max(var[i], EKF_C(0));
+        if (row >= ATT_PHI) {
+            var[row - ATT_PHI] = ekf_max(v, EKF_C(0));
+        }
+        k = end;
     }
 }
 
@@ -110,18 +115,23 @@ void att_cov_scale_diag(att_cov_t *c, int first, int len, ekf_scalar_t rel)
 int att_cov_floor_diag(att_cov_t *c, ekf_scalar_t floor)
 {
     const ekf_scalar_t k = EKF_C(32 * ATT_N);
-    ekf_scalar_t top = EKF_C(0), low = EKF_C(0), tol;
+    ekf_scalar_t low = EKF_C(0);
     int i;
     for (i = 0; i < ATT_N; ++i) {
         if (!ekf_isfinite(PIJ(c, i, i))) {
             return -1;
         }
-        top = ekf_max(top, PIJ(c, i, i));
         low = ekf_min(low, PIJ(c, i, i));
     }
-    tol = ekf_mac(ekf_mul(ekf_mul(k, EKF_SCALAR_EPS), top), ekf_mul(k, EKF_SCALAR_ABS_EPS), ekf_add(EKF_C(1), top));
-    if (low < ekf_neg(tol)) {
-        return -1;
+    if (low < EKF_C(0)) { /* rare: the allowance relative to the largest variance */
+        ekf_scalar_t top = EKF_C(0);
+        for (i = 0; i < ATT_N; ++i) {
+            top = ekf_max(top, PIJ(c, i, i));
+        }
+        if (low < ekf_neg(ekf_mac(ekf_mul(ekf_mul(k, EKF_SCALAR_EPS), top), ekf_mul(k, EKF_SCALAR_ABS_EPS),
+                                  ekf_add(EKF_C(1), top)))) {
+            return -1;
+        }
     }
     for (i = 0; i < ATT_N; ++i) {
         PIJ(c, i, i) = ekf_max(PIJ(c, i, i), floor);

@@ -170,9 +170,12 @@ static ekf_scalar_t variance_tolerance(int n, ekf_scalar_t pii, ekf_scalar_t ki,
 {
     const ekf_scalar_t c = ekf_from_int((int32_t)(32 * n));
     const ekf_scalar_t k = ekf_abs(ki);
-    const ekf_scalar_t rel = ekf_mul(ekf_mul(c, EKF_SCALAR_EPS), ekf_add(ekf_abs(pii), ekf_mul(k, ekf_abs(bi))));
-    const ekf_scalar_t fac = ekf_mul(ekf_add(EKF_C(1), k), ekf_add(ekf_add(EKF_C(1), k), ekf_abs(bi)));
-    return ekf_mac(rel, ekf_mul(c, EKF_SCALAR_ABS_EPS), fac);
+    ekf_scalar_t tol = ekf_mul(ekf_mul(c, EKF_SCALAR_EPS), ekf_add(ekf_abs(pii), ekf_mul(k, ekf_abs(bi))));
+    if (EKF_SCALAR_ABS_EPS > EKF_C(0)) { /* a compile-time constant: fixed point only */
+        const ekf_scalar_t fac = ekf_mul(ekf_add(EKF_C(1), k), ekf_add(ekf_add(EKF_C(1), k), ekf_abs(bi)));
+        tol = ekf_mac(tol, ekf_mul(c, EKF_SCALAR_ABS_EPS), fac);
+    }
+    return tol;
 }
 
 ekf_status_t ekf_update_scalar(ekf_scalar_t *x, ekf_scalar_t *P, uint8_t n, const ekf_hrow_t *h,
@@ -270,8 +273,8 @@ ekf_status_t ekf_update_scalar(ekf_scalar_t *x, ekf_scalar_t *P, uint8_t n, cons
         K[i] = ki;
         bad = ekf_finite_acc(bad, ekf_mac(x[i], ki, innovation));
         bad = ekf_finite_acc(bad, vi);
-        if (vi < ekf_neg(variance_tolerance(nn, P[i * nn + i], ki, b[i]))) {
-            indefinite = 1;
+        if (vi < EKF_C(0) && vi < ekf_neg(variance_tolerance(nn, P[i * nn + i], ki, b[i]))) {
+            indefinite = 1; /* (the allowance is only needed for the rare negative values) */
         }
     }
     if (!(bad == EKF_C(0)) || indefinite) {
