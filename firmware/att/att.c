@@ -314,7 +314,7 @@ static ekf_status_t gyro_stage(att_vars_t *w, const att_settings_t *s, const att
 
 ekf_status_t att_step(att_ekf_t *f, const att_sample_t *sample, att_step_report_t *report)
 {
-    att_step_report_t local;
+    att_step_report_t local = {EKF_OK, EKF_OK, EKF_OK, EKF_OK}; /* set below; initialised for the analysers */
     att_step_report_t *rep = (report != NULL) ? report : &local;
     const att_settings_t *s;
     ekf_status_t *last = &rep->predict; /* the slot of the last stage that ran */
