@@ -302,6 +302,25 @@ static void test_input_errors_change_nothing(void)
     before = g_paths;
     all_input_errors(&f, &good);
     printf("aligned filter: %d refused calls checked\n", g_paths - before);
+    /* at rest (ATT_FLAG_AT_REST, the offset being learned): a bad dt neither clears the flag
+     * nor feeds the rest detector */
+    {
+        att_sample_t smp;
+        att_step_report_t rep;
+        int k;
+        for (k = 0; k < 300 && (att_flags(&f) & ATT_FLAG_AT_REST) == 0u; ++k) {
+            sample_at_rest(&sim, &smp);
+            (void)att_step(&f, &smp, NULL);
+        }
+        TEST_ASSERT_TRUE(att_flags(&f) & ATT_FLAG_AT_REST);
+        sample_at_rest(&sim, &smp);
+        smp.dt = EKF_C(0);
+        REFUSED(&f, att_step(&f, &smp, &rep), EKF_ERR_DT_NONPOSITIVE, CNT_REJECTED);
+        smp.dt = nan_s();
+        REFUSED(&f, att_step(&f, &smp, &rep), EKF_ERR_NOT_FINITE, CNT_REJECTED);
+        TEST_ASSERT_TRUE(att_flags(&f) & ATT_FLAG_AT_REST);
+        sample_at_rest(&sim, &good);
+    }
     /* a bad vector of an absent sensor is not an input */
     {
         att_sample_t smp = good;
