@@ -8,7 +8,7 @@
 #   ./scripts/fuzz.sh --seed 0         random mutation seed (default 1: the suite's run is
 #                                      repeatable; a finding reproduces with the same seed)
 #
-# Targets: fuzz_att_f, fuzz_att_d (estimator, float / double), fuzz_hal_can (CAN protocol +
+# Targets: fuzz_att_f, fuzz_att_d, fuzz_att_x (estimator: float, double, fixed point), fuzz_hal_can (CAN protocol +
 # node), fuzz_socketcan (SocketCAN receive path), fuzz_candump (the node's candump log lines),
 # fuzz_parsers (Python file parsers, atheris).
 # Default: all but fuzz_att_d. --jobs: libFuzzer worker processes per target (default 1).
@@ -22,7 +22,7 @@ set -uo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
 TIME=60
-TARGETS="fuzz_att_f fuzz_hal_can fuzz_socketcan fuzz_candump fuzz_parsers"
+TARGETS="fuzz_att_f fuzz_att_x fuzz_hal_can fuzz_socketcan fuzz_candump fuzz_parsers"
 WORKERS=1
 SEED=1
 while (($#)); do
@@ -62,7 +62,7 @@ fi
 
 pids=(); names=()
 for t in $TARGETS; do
-  seeds="$ROOT/tests/fuzz/corpus/${t%_[fd]}"
+  seeds="$ROOT/tests/fuzz/corpus/${t%_[fdx]}"
   work="$OUT/corpus/$t"
   art="$OUT/artifacts/$t/"
   mkdir -p "$work" "$art"

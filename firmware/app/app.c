@@ -179,13 +179,32 @@ static int is_rejection(ekf_status_t st)
     return st != EKF_OK && st != EKF_GATED && st != EKF_SKIPPED && st != EKF_ERR_NOT_INITIALISED;
 }
 
+static int bad_vector(ekf_status_t st) { return st == EKF_ERR_NOT_FINITE || st == EKF_ERR_RANGE; }
+
+/* Clears the presence bit of every sensor whose vector att_step refused (non-finite or
+ * out of range). Returns 1 if a sensor was dropped and the sample is worth another call. */
+static int retry_without_bad_sensors(att_sample_t *in, const att_step_report_t *rep)
+{
+    const uint8_t before = in->valid;
+    if (bad_vector(rep->gyro)) {
+        in->valid = (uint8_t)(in->valid & ~(ATT_HAS_GYRO | ATT_GYRO_SATURATED));
+    }
+    if (bad_vector(rep->accel)) {
+        in->valid = (uint8_t)(in->valid & ~ATT_HAS_ACCEL);
+    }
+    if (bad_vector(rep->mag)) {
+        in->valid = (uint8_t)(in->valid & ~ATT_HAS_MAG);
+    }
+    return in->valid != before && !is_rejection(rep->predict);
+}
+
 static void process(app_t *a, const hal_sample_t *s)
 {
     const hal_t *hal = a->hal;
     const app_settings_t *cfg = &a->settings;
     att_sample_t in;
     att_step_report_t rep;
-    ekf_status_t st;
+    ekf_status_t st, refused;
     uint64_t dt_us = 0u;
     uint8_t use = (uint8_t)(s->valid & HAL_HAS_ALL);
     int i;
@@ -250,19 +269,35 @@ static void process(app_t *a, const hal_sample_t *s)
                          ((use & HAL_HAS_MAG) ? ATT_HAS_MAG : 0u) |
                          ((s->valid & s->saturated & HAL_HAS_GYRO) ? ATT_GYRO_SATURATED : 0u));
     in.dt = (ekf_scalar_t)dt_us * EKF_C(1e-6);
+    refused = EKF_OK;
     if ((att_flags(&a->ekf) & ATT_FLAG_ALIGNED) != 0u) {
-        /* Longer than one filter step allows (a gap): predict across it in pieces. */
+        /* Longer than one filter step allows (a gap): predict across it in pieces. A
+         * refused piece (numeric) ends the loop; the sample's own step then sees the
+         * rest of the gap. */
         const ekf_scalar_t dt_max = a->att_settings.dt_max;
         while (in.dt > dt_max) {
-            (void)att_predict(&a->ekf, dt_max);
+            st = att_predict(&a->ekf, dt_max);
+            if (st != EKF_OK) {
+                refused = st;
+                break;
+            }
             in.dt = ekf_sub(in.dt, dt_max);
         }
     }
     st = att_step(&a->ekf, &in, &rep);
+    if (is_rejection(st) && retry_without_bad_sensors(&in, &rep)) {
+        /* att_step refuses a whole sample for one bad sensor vector: the rest of the
+         * sample is still worth fusing (the refusal is counted below) */
+        refused = st;
+        st = att_step(&a->ekf, &in, &rep);
+    }
     if (is_rejection(st)) {
+        refused = st;
+    }
+    if (refused != EKF_OK) {
         hal_count(&a->counters[HAL_CNT_EKF_REJECTED]);
         a->latched |= HAL_FLAG_EKF_REJECT;
-        hal_report(hal, HAL_LOG_DEBUG, HAL_EV_EKF_REJECT, (int32_t)st);
+        hal_report(hal, HAL_LOG_DEBUG, HAL_EV_EKF_REJECT, (int32_t)refused);
     }
     if (!a->was_aligned && (att_flags(&a->ekf) & ATT_FLAG_ALIGNED) != 0u) {
         a->was_aligned = 1u;

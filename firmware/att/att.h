@@ -19,14 +19,23 @@
  * Units: SI inside (rad, rad/s, m/s^2, s); the magnetometer in any unit (uT suggested),
  * used consistently with mag_range and mag_ref_norm. Frames: body to ENU (att_defs.h).
  *
- * Every function validates its input; an error leaves the filter exactly as it was and is
- * counted in att_diag_t. The filter never stores NaN or Inf.
+ * Contract of every call that changes the filter (att_init, att_align, att_step and the
+ * stages): it either succeeds, or it leaves the whole filter exactly as it was (state,
+ * covariance, flags, every counter and diagnostic, rest detector, low-pass, clocks) except
+ * its one error counter, diag.rejected (bad input) or diag.numeric (EKF_ERR_NUMERIC). Every
+ * input is validated before the first write, and the stages run on a working copy that
+ * replaces the filter's variables only when the whole call succeeded. EKF_GATED and
+ * EKF_SKIPPED are not errors: the call was applied. After every successful call P is
+ * symmetric positive definite with every variance >= var_floor (checked by the guard, and
+ * repaired if rounding broke it: diag.cov_repairs, ATT_FLAG_COV_REPAIRED). The filter never
+ * stores NaN or Inf. Outputs (att_get_*) only read.
  */
 #ifndef ATT_H
 #define ATT_H
 
 #include <stdint.h>
 
+#include "att_cov.h"
 #include "att_defs.h"
 #include "att_rest.h"
 #include "ekf.h"
@@ -40,10 +49,11 @@ typedef struct {
     /* process model */
     ekf_scalar_t rate_walk;       /* body-rate random walk, rad/s/sqrt(s): Var(dw) = rate_walk^2 dt */
     ekf_scalar_t angle_walk;      /* extra angle random walk, rad/sqrt(s) (model error) */
-    ekf_scalar_t euler_rate_rel;  /* independent error of the Euler-rate states per step, as a
-                                     fraction of their variance (dimensionless, > 0): the model
-                                     error of the discrete kinematics; keeps P well conditioned
-                                     (docs/derivation.md, "Conditioning") */
+    ekf_scalar_t euler_rate_rel;  /* independent error per step of each Euler-rate state and of
+                                     each angle's increment, as a fraction of its variance
+                                     (dimensionless, > 0): the model error of the discrete
+                                     kinematics; keeps P well conditioned (docs/derivation.md,
+                                     "Conditioning") */
     /* gyroscope */
     ekf_scalar_t gyro_noise; /* white noise, 1 sigma per sample, rad/s */
     ekf_scalar_t gyro_gate;  /* innovation gate, sigmas; 0 = off */
@@ -125,8 +135,9 @@ typedef struct {
     uint32_t mag_gated;
     uint32_t accel_skipped;   /* samples not fused by policy (linear acceleration) */
     uint32_t mag_skipped;     /* samples not fused by policy (disturbance, gimbal lock) */
-    uint32_t rejected;        /* calls refused for bad input (status >= EKF_ERR_NULL and < EKF_GATED) */
-    uint32_t numeric;         /* updates refused with EKF_ERR_NUMERIC */
+    uint32_t rejected;        /* calls refused for bad input (an error status other than
+                                 EKF_ERR_NUMERIC; not for a NULL filter) */
+    uint32_t numeric;         /* calls refused with EKF_ERR_NUMERIC (the whole call discarded) */
     uint32_t remaps;          /* pitch remaps through +-90 deg */
     uint32_t cov_repairs;     /* calls after which P needed diagonal loading */
     uint32_t heading_resets;  /* heading set to the magnetic heading (mag_reset_time) */
@@ -139,11 +150,11 @@ typedef struct {
     ekf_scalar_t mag_dip_error;    /* last dip - ref dip, rad */
 } att_diag_t;
 
-/* Filter memory. Treat as opaque: read it through the accessors below. */
+/* Everything a call of the filter can change (all but the settings). Treat as opaque:
+ * read it through the accessors below. */
 typedef struct {
     ekf_scalar_t x[ATT_N];
-    ekf_scalar_t P[ATT_N * ATT_N];
-    att_settings_t settings;
+    att_cov_t cov;              /* covariance of x (att_cov.h; layout of the implementation) */
     ekf_scalar_t mag_ref_norm;  /* in use (set or learned) */
     ekf_scalar_t mag_ref_dip;
     ekf_scalar_t mag_tan2_dip;  /* tan^2 of mag_ref_dip (set with the reference) */
@@ -161,6 +172,12 @@ typedef struct {
     att_rest_t rest;            /* rest detector and gyroscope offset */
     uint32_t flags;
     att_diag_t diag;
+} att_vars_t;
+
+/* Filter memory: the settings (fixed by att_init) and the variables. Treat as opaque. */
+typedef struct {
+    att_settings_t settings;
+    att_vars_t vars;
 } att_ekf_t;
 
 /* Sensor presence bits of att_sample_t.valid */
@@ -183,7 +200,11 @@ typedef struct {
     uint8_t valid;         /* ATT_HAS_* bits, ATT_GYRO_SATURATED */
 } att_sample_t;
 
-/* Per-stage result of att_step. A stage whose sensor was absent reports EKF_OK. */
+/* Per-stage result of att_step. Applied sample: each stage's status, EKF_OK for a stage whose
+ * sensor was absent (and for predict while aligning). Refused sample: the slot of each bad
+ * input (dt: predict) holds its error, or the slot of the stage that failed numerically
+ * EKF_ERR_NUMERIC; every other slot EKF_SKIPPED (nothing was applied). A NULL filter or
+ * sample: EKF_ERR_NULL in every slot. */
 typedef struct {
     ekf_status_t predict;
     ekf_status_t gyro;
@@ -194,25 +215,34 @@ typedef struct {
 /* Linked as att_init_for_EKF_SCALAR_<type>: see EKF_SCALAR_LINK_NAME in ekf_config.h. */
 #define att_init EKF_SCALAR_LINK_NAME(att_init)
 /* Validates settings and resets the filter to "not aligned". EKF_ERR_SETTINGS if a setting
- * is out of range (the filter is then not usable until a successful att_init). */
+ * is out of range (f is not written: a filter never initialised stays unusable). */
 ekf_status_t att_init(att_ekf_t *f, const att_settings_t *settings);
 
 /* 0 if the settings are usable, else EKF_ERR_SETTINGS (or EKF_ERR_NULL). */
 ekf_status_t att_settings_check(const att_settings_t *s);
 
-/* Sets the attitude from one accelerometer sample (m/s^2) and optionally a magnetometer
- * sample (NULL: heading 0 with variance heading_var_max), rates zero; resets P. */
+/* Sets the attitude from one accelerometer sample (m/s^2; EKF_ERR_RANGE if its norm is
+ * below 0.1 g: no gravity direction) and optionally a magnetometer sample (NULL: heading 0
+ * with variance heading_var_max), rates zero; resets P. */
 ekf_status_t att_align(att_ekf_t *f, const ekf_scalar_t accel[3], const ekf_scalar_t mag[3]);
 
 /* One sample: align (first align_samples accelerometer samples) or gyro update, predict,
- * accelerometer and magnetometer updates. Returns EKF_OK if everything present was fused,
- * else the first non-OK stage status (order: predict, gyro, accel, mag); report (may be
- * NULL) gets every stage. A bad dt refuses the whole sample; a bad sensor vector refuses
- * only that sensor. While aligning, samples without accelerometer return
- * EKF_ERR_NOT_INITIALISED. */
+ * accelerometer and magnetometer updates. All or nothing: dt (once aligned; while aligning
+ * it is not an input, and the rest detector skips a sample without a valid one) and every
+ * present sensor vector are validated first, and any bad one (NULL, non-finite, out of
+ * range, dt <= 0 or > dt_max; while aligning, a sample without accelerometer:
+ * EKF_ERR_NOT_INITIALISED) refuses the whole sample, as does a numeric failure in any
+ * stage (EKF_ERR_NUMERIC). A caller that wants the rest of a sample with one bad sensor
+ * clears that sensor's bit and calls again (firmware/app does, and counts it).
+ * Returns: refused, the first error in the report (order predict, gyro, accel, mag);
+ * applied, EKF_OK if everything present was fused, else the first non-OK stage status
+ * (EKF_GATED or EKF_SKIPPED). report (may be NULL): see att_step_report_t. If the averaged
+ * alignment samples have no usable gravity direction, the averaging restarts (EKF_SKIPPED
+ * for accel, diag.accel_skipped). */
 ekf_status_t att_step(att_ekf_t *f, const att_sample_t *sample, att_step_report_t *report);
 
-/* The stages (require an aligned filter; EKF_ERR_NOT_INITIALISED otherwise). */
+/* The stages, one call each (require an aligned filter; EKF_ERR_NOT_INITIALISED
+ * otherwise), under the same contract. */
 ekf_status_t att_predict(att_ekf_t *f, ekf_scalar_t dt);
 ekf_status_t att_update_gyro(att_ekf_t *f, const ekf_scalar_t gyro[3]);
 ekf_status_t att_update_accel(att_ekf_t *f, const ekf_scalar_t accel[3]);
@@ -226,8 +256,8 @@ void att_get_euler_rates(const att_ekf_t *f, ekf_scalar_t e[3]);     /* rad/s */
 void att_get_gyro_bias(const att_ekf_t *f, ekf_scalar_t b[3]);
 void att_get_quaternion(const att_ekf_t *f, ekf_scalar_t q[4]);      /* w, x, y, z: body to ENU */
 void att_get_variances(const att_ekf_t *f, ekf_scalar_t var[ATT_N]); /* diagonal of P */
+void att_get_covariance(const att_ekf_t *f, ekf_scalar_t P[ATT_N * ATT_N]); /* all of P, row-major */
 const ekf_scalar_t *att_state(const att_ekf_t *f);                   /* x[ATT_N] */
-const ekf_scalar_t *att_covariance(const att_ekf_t *f);              /* P, row-major */
 uint32_t att_flags(const att_ekf_t *f);
 const att_diag_t *att_diag(const att_ekf_t *f);
 

@@ -51,17 +51,7 @@ void att_model_transition(const ekf_scalar_t x[ATT_N], const ekf_scalar_t w[3], 
     }
 }
 
-static void negate_row_col(ekf_scalar_t P[ATT_N * ATT_N], int i)
-{
-    int j;
-    for (j = 0; j < ATT_N; ++j) {
-        P[i * ATT_N + j] = ekf_neg(P[i * ATT_N + j]);
-        P[j * ATT_N + i] = ekf_neg(P[j * ATT_N + i]);
-    }
-    /* the diagonal entry was negated twice: unchanged, as the congruence requires */
-}
-
-int att_model_normalise(ekf_scalar_t x[ATT_N], ekf_scalar_t P[ATT_N * ATT_N])
+int att_model_normalise(ekf_scalar_t x[ATT_N])
 {
     int remapped = 0;
     /* theta and theta + 2 pi are the same rotation (sin and cos unchanged) */
@@ -74,10 +64,6 @@ int att_model_normalise(ekf_scalar_t x[ATT_N], ekf_scalar_t P[ATT_N * ATT_N])
         x[ATT_PHI] = ekf_add(x[ATT_PHI], EKF_PI);
         x[ATT_PSI] = ekf_add(x[ATT_PSI], EKF_PI);
         x[ATT_THETAD] = ekf_neg(x[ATT_THETAD]);
-        if (P != NULL) {
-            negate_row_col(P, ATT_THETA);
-            negate_row_col(P, ATT_THETAD);
-        }
         remapped = 1;
     }
     x[ATT_PHI] = ekf_wrap_pi(x[ATT_PHI]);

@@ -36,11 +36,11 @@ void att_model_transition(const ekf_scalar_t x[ATT_N], const ekf_scalar_t w[3], 
 /*
  * Brings the Euler triple back to phi, psi in [-pi, pi), theta in [-pi/2, pi/2]. A pitch
  * beyond +-pi/2 (the body went over the top) is remapped to the same rotation
- * (phi + pi, +-pi - theta, psi + pi), with thetad -> -thetad; P (may be NULL) is
- * transformed alike (rows and columns of theta and thetad negated). Returns 1 if the
- * pitch remap happened.
+ * (phi + pi, +-pi - theta, psi + pi), with thetad -> -thetad. Returns 1 if the pitch
+ * remap happened: the covariance then needs the same transformation, the rows and
+ * columns of theta and thetad negated (att_cov_negate_state).
  */
-int att_model_normalise(ekf_scalar_t x[ATT_N], ekf_scalar_t P[ATT_N * ATT_N]);
+int att_model_normalise(ekf_scalar_t x[ATT_N]);
 
 /* Unit quaternion (w, x, y, z) of R = Rz(psi) Ry(theta) Rx(phi), body to ENU. */
 void att_model_euler_to_quat(ekf_scalar_t phi, ekf_scalar_t theta, ekf_scalar_t psi, ekf_scalar_t q[4]);

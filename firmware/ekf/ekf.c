@@ -159,6 +159,25 @@ ekf_status_t ekf_cov_propagate(ekf_scalar_t *P, uint8_t n, const ekf_nz_t *patte
     return EKF_OK;
 }
 
+/* Rounding allowance of an updated variance v = P_ii - K_i b_i (docs/derivation.md,
+ * "Covariance update"): below -tol the covariance is indefinite beyond rounding and the
+ * update is refused; between -tol and var_floor v is floored. In exact arithmetic v >= 0
+ * for a positive semi-definite P. The relative part covers IEEE rounding of the n-term sums
+ * behind b and S (about n eps of |P_ii| + K_i b_i, with a margin for cancellation); the
+ * absolute part covers fixed point, where every product is rounded to one LSB and the
+ * error grows with the factors K_i and b_i. */
+static ekf_scalar_t variance_tolerance(int n, ekf_scalar_t pii, ekf_scalar_t ki, ekf_scalar_t bi)
+{
+    const ekf_scalar_t c = ekf_from_int((int32_t)(32 * n));
+    const ekf_scalar_t k = ekf_abs(ki);
+    ekf_scalar_t tol = ekf_mul(ekf_mul(c, EKF_SCALAR_EPS), ekf_add(ekf_abs(pii), ekf_mul(k, ekf_abs(bi))));
+    if (EKF_SCALAR_ABS_EPS > EKF_C(0)) { /* a compile-time constant: fixed point only */
+        const ekf_scalar_t fac = ekf_mul(ekf_add(EKF_C(1), k), ekf_add(ekf_add(EKF_C(1), k), ekf_abs(bi)));
+        tol = ekf_mac(tol, ekf_mul(c, EKF_SCALAR_ABS_EPS), fac);
+    }
+    return tol;
+}
+
 ekf_status_t ekf_update_scalar(ekf_scalar_t *x, ekf_scalar_t *P, uint8_t n, const ekf_hrow_t *h,
                                ekf_scalar_t innovation, ekf_scalar_t r_var,
                                ekf_scalar_t gate_sigma, ekf_scalar_t var_floor,
@@ -170,8 +189,14 @@ ekf_status_t ekf_update_scalar(ekf_scalar_t *x, ekf_scalar_t *P, uint8_t n, cons
     const uint8_t *hidx;
     const ekf_scalar_t *hval;
     const int nn = n;
-    int i, j, k, nh;
+    int i, j, k, nh, indefinite;
 
+    if (info != NULL) {
+        /* every field defined on every path (overwritten below once S is formed) */
+        info->innovation = EKF_C(0);
+        info->variance = EKF_C(0);
+        info->test_ratio = EKF_C(0);
+    }
     if (x == NULL || P == NULL || h == NULL || (h->nnz > 0 && (h->idx == NULL || h->value == NULL))) {
         return EKF_ERR_NULL;
     }
@@ -214,20 +239,19 @@ ekf_status_t ekf_update_scalar(ekf_scalar_t *x, ekf_scalar_t *P, uint8_t n, cons
         hb = ekf_mac(hb, hval[k], b[hidx[k]]);
     }
     s = ekf_add(hb, r_var);
+    if (info != NULL) {
+        info->innovation = innovation;
+        info->variance = s;
+    }
     if (!ekf_isfinite(s) || !(s >= r_var) || !(s > EKF_C(0))) {
         /* H P H^T < 0 means P is not positive semi-definite along H: refuse */
         return EKF_ERR_NUMERIC;
     }
-    if (info != NULL) {
-        info->innovation = innovation;
-        info->variance = s;
-        info->test_ratio = EKF_C(0);
-    }
     if (gate_sigma > EKF_C(0)) {
         const ekf_scalar_t nu2 = ekf_sq(innovation);
         const ekf_scalar_t lim = ekf_mul(ekf_sq(gate_sigma), s);
-        /* a gate so small that gate^2 S underflows to 0 passes only a zero innovation
-         * (found by fuzzing: the ratio was a division by zero); 1e6 stands for "far out" */
+        /* a gate so small that gate^2 S underflows to 0 passes only a zero innovation (the
+         * ratio would be a division by zero); 1e6 stands for "far out" */
         const ekf_scalar_t ratio = (lim > EKF_C(0)) ? ekf_div(nu2, lim) : ((nu2 > EKF_C(0)) ? EKF_C(1e6) : EKF_C(0));
         if (info != NULL) {
             info->test_ratio = ratio;
@@ -237,27 +261,32 @@ ekf_status_t ekf_update_scalar(ekf_scalar_t *x, ekf_scalar_t *P, uint8_t n, cons
         }
     }
 
-    /* Gain, and a check that the gain, the new state and the new variances are finite
-     * before anything is written, so that a refused update leaves x and P as they were. */
+    /* Gain, and a check that the gain, the new state and the new variances are finite and
+     * the new variances not negative beyond rounding, before anything is written, so that
+     * a refused update leaves x and P as they were. */
     inv_s = ekf_div(EKF_C(1), s);
     bad = EKF_C(0);
+    indefinite = 0;
     for (i = 0; i < nn; ++i) {
         const ekf_scalar_t ki = ekf_mul(b[i], inv_s);
+        const ekf_scalar_t vi = ekf_mac(P[i * nn + i], ekf_neg(ki), b[i]);
         K[i] = ki;
         bad = ekf_finite_acc(bad, ekf_mac(x[i], ki, innovation));
-        bad = ekf_finite_acc(bad, ekf_mac(P[i * nn + i], ekf_neg(ki), b[i]));
+        bad = ekf_finite_acc(bad, vi);
+        if (vi < EKF_C(0) && vi < ekf_neg(variance_tolerance(nn, P[i * nn + i], ki, b[i]))) {
+            indefinite = 1; /* (the allowance is only needed for the rare negative values) */
+        }
     }
-    if (!(bad == EKF_C(0))) {
+    if (!(bad == EKF_C(0)) || indefinite) {
         return EKF_ERR_NUMERIC;
     }
     /* P+ = P - K b^T (= P - b b^T / S), docs/derivation.md "Covariance update". Computed
      * on the upper triangle and mirrored, so P stays exactly symmetric; the diagonal is
-     * floored. This is the Joseph form (I - K H) P (I - K H)^T + K R K^T evaluated at the
-     * gain K = b / S the routine itself computes: the Joseph form's extra terms,
-     * -b K^T + S K K^T = (S K - b) K^T, vanish for that gain and would only add the
-     * rounding of K (below the rounding of P itself). The 10^6-step stress tests
-     * (tests/c/test_att_stress.c, float and double, host and Cortex-M4F) show it keeps P
-     * positive definite as the Joseph evaluation did (docs/performance.md). */
+     * floored (the values below the floor are rounding-size or small positive ones: the
+     * loop above refused anything more negative). This is the Joseph form
+     * (I - K H) P (I - K H)^T + K R K^T evaluated at the gain K = b / S the routine itself
+     * computes: the Joseph form's extra terms, -b K^T + S K K^T = (S K - b) K^T, vanish for
+     * that gain and would only add the rounding of K (below the rounding of P itself). */
     for (i = 0; i < nn; ++i) {
         ekf_scalar_t *pi = &P[i * nn];
         ekf_scalar_t *pc = &P[(i + 1) * nn + i];
@@ -282,19 +311,10 @@ int ekf_cov_limit_variance(ekf_scalar_t *P, uint8_t n, uint8_t i, ekf_scalar_t m
         return 0;
     }
     pii = P[(uint32_t)i * n + i];
-    if (!(pii > max_var)) {
+    if (!(pii > max_var) || !ekf_isfinite(pii)) {
+        /* (an overflowed variance has no scale: left for the caller's finiteness check to
+         * refuse, not reset to a bound that would hide the overflow) */
         return 0;
-    }
-    if (!ekf_isfinite(pii)) {
-        /* overflowed (a saturated fixed-point value, docs/fixed_point.md): no scale
-         * exists; reset the state's variance to the bound, uncorrelated (a principal block
-         * plus a positive diagonal entry: P stays positive semi-definite) */
-        for (j = 0; j < n; ++j) {
-            P[(uint32_t)i * n + j] = EKF_C(0);
-            P[(uint32_t)j * n + i] = EKF_C(0);
-        }
-        P[(uint32_t)i * n + i] = max_var;
-        return 1;
     }
     scale = ekf_sqrt(ekf_div(max_var, pii));
     for (j = 0; j < n; ++j) {
@@ -345,31 +365,52 @@ int ekf_cov_is_pd(const ekf_scalar_t *P, uint8_t n, ekf_scalar_t rel_margin, ekf
 int ekf_cov_ensure_pd(ekf_scalar_t *P, uint8_t n, ekf_scalar_t rel_margin, ekf_scalar_t floor,
                       ekf_scalar_t *work)
 {
-    ekf_scalar_t lambda = ekf_mul(EKF_C(10), rel_margin);
-    int rounds = 0;
+    /* the first load is 10 rel_margin, at least 16 eps (so that a zero margin terminates
+     * too), growing tenfold per round up to 1 */
+    ekf_scalar_t lambda = ekf_max(ekf_mul(EKF_C(10), rel_margin), ekf_mul(EKF_C(16), EKF_SCALAR_EPS));
+    int rounds = 0, passed = 0;
     uint8_t i, j;
-    if (P == NULL || work == NULL || n == 0 || n > EKF_MAX_STATES) {
-        return 0;
+    if (P == NULL || work == NULL || n == 0 || n > EKF_MAX_STATES || !ekf_isfinite(floor) ||
+        !(floor > EKF_C(0)) || !ekf_isfinite(rel_margin) || rel_margin < EKF_C(0) || !(rel_margin < EKF_C(1))) {
+        return -1;
     }
-    while (!ekf_cov_is_pd(P, n, rel_margin, work)) {
+    if (ekf_cov_is_pd(P, n, rel_margin, work)) {
+        return 0; /* (the check also shows that P is finite) */
+    }
+    if (!ekf_all_finite(P, (uint16_t)((uint16_t)n * n))) {
+        return -1; /* nothing to repair from: an overflow upstream, the caller refuses */
+    }
+    while (!passed) {
+        int finite = 1;
         ++rounds;
         if (lambda > EKF_C(1)) {
-            /* the correlations themselves are broken: keep the variances only */
-            for (i = 0; i < n; ++i) {
-                for (j = 0; j < n; ++j) {
-                    if (i != j) {
-                        P[(uint32_t)i * n + j] = EKF_C(0);
-                    }
-                }
-                P[(uint32_t)i * n + i] = ekf_max(P[(uint32_t)i * n + i], floor);
-            }
             break;
+        }
+        for (i = 0; i < n && finite; ++i) {
+            const ekf_scalar_t pii = ekf_max(P[(uint32_t)i * n + i], floor);
+            finite = ekf_isfinite(ekf_mac(pii, pii, lambda));
+        }
+        if (!finite) {
+            break; /* loading would overflow: keep the variances only (below) */
         }
         for (i = 0; i < n; ++i) {
             const ekf_scalar_t pii = ekf_max(P[(uint32_t)i * n + i], floor);
             P[(uint32_t)i * n + i] = ekf_mac(pii, pii, lambda);
         }
         lambda = ekf_mul(lambda, EKF_C(10));
+        passed = ekf_cov_is_pd(P, n, rel_margin, work);
+    }
+    if (!passed) {
+        /* the correlations themselves are broken: keep the variances only, a positive
+         * diagonal matrix (every pivot equals its variance: passes any margin < 1) */
+        for (i = 0; i < n; ++i) {
+            for (j = 0; j < n; ++j) {
+                if (i != j) {
+                    P[(uint32_t)i * n + j] = EKF_C(0);
+                }
+            }
+            P[(uint32_t)i * n + i] = ekf_max(P[(uint32_t)i * n + i], floor);
+        }
     }
     return rounds;
 }

@@ -102,12 +102,18 @@ ekf_status_t ekf_cov_propagate(ekf_scalar_t *P, uint8_t n, const ekf_nz_t *patte
  * gate_sigma > 0 enables the chi-square test innovation^2 <= gate_sigma^2 S (one degree
  * of freedom: gate_sigma 3 keeps 99.73 % of consistent innovations); a failed test
  * returns EKF_GATED with x and P unchanged. gate_sigma <= 0 disables the test.
- * info (may be NULL) receives innovation, S and the test ratio in every case where S
- * could be formed.
+ *
+ * info (may be NULL) is written on every path: innovation and S once S is formed (also
+ * when S is then refused), the test ratio when the gate is on (else 0); every field is 0
+ * on the paths that return before S is formed.
  *
  * Errors (x, P unchanged): EKF_ERR_NULL, EKF_ERR_DIMENSION, EKF_ERR_NOT_FINITE
- * (innovation, r_var or H), EKF_ERR_RANGE (r_var <= 0), EKF_ERR_NUMERIC (S, K or the
- * updated covariance would not be finite and positive).
+ * (innovation, r_var or H), EKF_ERR_RANGE (r_var <= 0), EKF_ERR_NUMERIC: S not finite or
+ * S < r_var (H P H^T < 0), a gain or new state not finite, or a new variance
+ * P_ii - K_i b_i that is not finite or negative beyond a rounding allowance (about
+ * 32 n eps (|P_ii| + K_i b_i) for IEEE types; for fixed point 32 n LSB scaled by the
+ * factors): the covariance would be indefinite, and no floor hides it. Only new
+ * variances within that allowance of zero, or positive ones, are raised to var_floor.
  */
 ekf_status_t ekf_update_scalar(ekf_scalar_t *x, ekf_scalar_t *P, uint8_t n, const ekf_hrow_t *h,
                                ekf_scalar_t innovation, ekf_scalar_t r_var,
@@ -118,7 +124,8 @@ ekf_status_t ekf_update_scalar(ekf_scalar_t *x, ekf_scalar_t *P, uint8_t n, cons
  * Caps the variance of state i at max_var by scaling row and column i of P by
  * sqrt(max_var / P_ii) (a congruence: P stays positive semi-definite and symmetric).
  * Used for states the measurements cannot observe (heading without magnetometer), whose
- * variance would otherwise grow without bound. Returns 1 if P was changed, 0 if not.
+ * variance would otherwise grow without bound. Returns 1 if P was changed, 0 if not (also
+ * for a non-finite P_ii, which no scaling can bring back: P is left as it is).
  */
 int ekf_cov_limit_variance(ekf_scalar_t *P, uint8_t n, uint8_t i, ekf_scalar_t max_var);
 
@@ -131,13 +138,17 @@ int ekf_cov_is_pd(const ekf_scalar_t *P, uint8_t n, ekf_scalar_t rel_margin, ekf
 
 /*
  * Guarantees that P passes ekf_cov_is_pd(P, n, rel_margin): if it does not, the diagonal is
- * loaded, P_ii <- max(P_ii, floor) (1 + lambda), with lambda = 10 rel_margin growing tenfold
- * per round up to 1; if even that fails, the off-diagonal entries are cleared (a positive
+ * loaded, P_ii <- max(P_ii, floor) (1 + lambda), with lambda = 10 rel_margin (at least
+ * 16 eps) growing tenfold per round up to 1; if even that fails (or the loading would
+ * overflow), the off-diagonal entries are cleared and P_ii <- max(P_ii, floor) (a positive
  * diagonal matrix). Relative loading keeps the correlation structure and only shrinks
- * correlation coefficients by 1 / (1 + lambda).
- * Returns the number of repair rounds: 0 if P was already positive definite.
+ * correlation coefficients by 1 / (1 + lambda). Afterwards every P_ii >= floor.
+ * Returns the number of repair rounds: 0 if P was already positive definite; -1 with P
+ * unchanged if P has a non-finite entry (no repair can give it a meaning: the caller
+ * refuses what produced it) or an argument is out of range (NULL, n, floor not finite and
+ * > 0, rel_margin not in [0, 1)).
  * A model calls it where rounding can break definiteness (docs/derivation.md,
- * "Covariance bounds").
+ * "Covariance bounds"). work: n (n + 1) / 2 scalars.
  */
 int ekf_cov_ensure_pd(ekf_scalar_t *P, uint8_t n, ekf_scalar_t rel_margin, ekf_scalar_t floor,
                       ekf_scalar_t *work);

@@ -45,6 +45,14 @@ extern "C" {
 #define EKF_SCALAR_LINK_NAME(name) name##_for_EKF_SCALAR_FLOAT
 #endif
 
+/* Covariance implementation of the attitude filter (firmware/att/att_cov.h; exactly one):
+ *   ATT_COV_REFERENCE  full row-major 9x9 P on the generic routines of ekf.h
+ *                      (att_cov_ref.c): the only implementation so far, the default.
+ */
+#if !defined(ATT_COV_REFERENCE)
+#define ATT_COV_REFERENCE 1
+#endif
+
 /* Largest state dimension any generic routine must handle. Sizes two scratch vectors on
  * the stack of ekf_update_scalar() and one index table of ekf_cov_propagate(); the models'
  * own arrays are sized by their own constants. At most 255 (dimensions are uint8_t). */

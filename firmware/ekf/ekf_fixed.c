@@ -78,11 +78,11 @@ ekf_fx_t ekf_fx_div(ekf_fx_t a, ekf_fx_t b)
     if (!ekf_fx_isfinite(b)) {
         return ekf_fx_isfinite(a) ? 0 : EKF_FX_INF; /* x / inf = 0; inf / inf: not a number */
     }
+    if (!ekf_fx_isfinite(a)) {
+        return neg ? EKF_FX_NINF : EKF_FX_INF; /* inf / x, inf / 0 too: no new event */
+    }
     if (b == 0) {
         return ekf_fx_saturate((a < 0) ? -1 : 1); /* x / 0 = +-inf, 0 / 0 = +inf: counted */
-    }
-    if (!ekf_fx_isfinite(a)) {
-        return neg ? EKF_FX_NINF : EKF_FX_INF;
     }
     ua = mag(a);
     ub = mag(b);
@@ -124,11 +124,11 @@ ekf_fx_t ekf_fx_sqrt(ekf_fx_t a)
 {
     uint64_t m, res = 0u, bit = (uint64_t)1 << 62;
     int s, e;
+    if (!ekf_fx_isfinite(a)) {
+        return EKF_FX_INF; /* sqrt(inf) = inf, sqrt(-inf) not a number: no new event */
+    }
     if (a <= 0) {
         return (a == 0) ? 0 : ekf_fx_saturate(1); /* sqrt(x < 0): not a number, counted */
-    }
-    if (!ekf_fx_isfinite(a)) {
-        return EKF_FX_INF;
     }
     /* a * 2^FRAC = m * 2^e with m = a << s in [2^62, 2^64) and e = FRAC - s even:
      * sqrt = sqrt(m) * 2^(e / 2), sqrt(m) a 32-bit integer (digit-by-digit) */
@@ -292,10 +292,10 @@ ekf_fx_t ekf_fx_from_double(double a)
         return EKF_FX_INF; /* NaN */
     }
     if (a >= limit || a <= -limit) {
-        if (a > 1e308 || a < -1e308) {
+        if (a == HUGE_VAL || a == -HUGE_VAL) {
             return (a > 0.0) ? EKF_FX_INF : EKF_FX_NINF; /* infinity: not counted */
         }
-        return ekf_fx_saturate(a > 0.0 ? 1 : -1);
+        return ekf_fx_saturate(a > 0.0 ? 1 : -1); /* finite, beyond the range: counted */
     }
     v = a * EKF_FX_SCALE;
     i = (ekf_fx_t)v; /* toward zero */
@@ -319,10 +319,10 @@ ekf_fx_t ekf_fx_from_float(float a)
         return EKF_FX_INF;
     }
     if (a >= limit || a <= -limit) {
-        if (a > 3.4e38f || a < -3.4e38f) {
-            return (a > 0.0f) ? EKF_FX_INF : EKF_FX_NINF;
+        if (a == HUGE_VALF || a == -HUGE_VALF) {
+            return (a > 0.0f) ? EKF_FX_INF : EKF_FX_NINF; /* infinity: not counted */
         }
-        return ekf_fx_saturate(a > 0.0f ? 1 : -1);
+        return ekf_fx_saturate(a > 0.0f ? 1 : -1); /* finite (3.4e38 too), beyond the range */
     }
     v = a * scale;
     i = (ekf_fx_t)v;

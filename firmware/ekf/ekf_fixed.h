@@ -99,13 +99,17 @@ static inline ekf_fx_t ekf_fx_sub(ekf_fx_t a, ekf_fx_t b) { return ekf_fx_add(a,
 
 static inline ekf_fx_t ekf_fx_abs(ekf_fx_t a) { return (a < 0) ? ekf_fx_neg(a) : a; }
 
-/* Largest integer <= a (fraction bits cleared; two's complement rounds toward -inf). */
+/* Largest integer <= a (fraction bits cleared; two's complement rounds toward -inf). The
+ * floor of a finite value just above -inf (within one unit of it) lies outside the range:
+ * -inf, counted like every other saturation. */
 static inline ekf_fx_t ekf_fx_floor(ekf_fx_t a)
 {
+    ekf_fx_t r;
     if (!ekf_fx_isfinite(a)) {
         return a;
     }
-    return (ekf_fx_t)((uint64_t)a & ~((uint64_t)EKF_FX_ONE - 1u));
+    r = (ekf_fx_t)((uint64_t)a & ~((uint64_t)EKF_FX_ONE - 1u));
+    return ekf_fx_isfinite(r) ? r : ekf_fx_saturate(-1);
 }
 
 ekf_fx_t ekf_fx_mul(ekf_fx_t a, ekf_fx_t b);

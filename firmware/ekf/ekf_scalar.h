@@ -33,6 +33,8 @@ typedef double ekf_scalar_t;
 /* Constant of the scalar type; the cast happens at compile time. */
 #define EKF_C(x) ((ekf_scalar_t)(x))
 #define EKF_SCALAR_EPS EKF_C(2.220446049250313e-16)
+/* Absolute rounding unit of a product (0: IEEE rounding is relative, EKF_SCALAR_EPS). */
+#define EKF_SCALAR_ABS_EPS EKF_C(0)
 
 static inline ekf_scalar_t ekf_sqrt(ekf_scalar_t a) { return sqrt(a); }
 static inline ekf_scalar_t ekf_sin(ekf_scalar_t a) { return sin(a); }
@@ -50,6 +52,7 @@ typedef float ekf_scalar_t;
 #define EKF_SCALAR_NAME "float"
 #define EKF_C(x) ((ekf_scalar_t)(x))
 #define EKF_SCALAR_EPS EKF_C(1.1920929e-07)
+#define EKF_SCALAR_ABS_EPS EKF_C(0)
 
 static inline ekf_scalar_t ekf_sqrt(ekf_scalar_t a) { return ekf_sqrtf(a); }
 static inline ekf_scalar_t ekf_sin(ekf_scalar_t a) { return ekf_sinf(a); }
@@ -71,6 +74,9 @@ typedef ekf_fx_t ekf_scalar_t;
 #define EKF_SCALAR_NAME "fixed"
 #define EKF_C(x) EKF_FX_C(x)
 #define EKF_SCALAR_EPS ((ekf_scalar_t)1) /* one LSB */
+/* Every product is rounded to one LSB, so its error grows with the size of the factors,
+ * not with the size of the result. */
+#define EKF_SCALAR_ABS_EPS ((ekf_scalar_t)1)
 
 static inline ekf_scalar_t ekf_sqrt(ekf_scalar_t a) { return ekf_fx_sqrt(a); }
 static inline ekf_scalar_t ekf_sin(ekf_scalar_t a) { return ekf_fx_sin(a); }

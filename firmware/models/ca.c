@@ -6,6 +6,8 @@
 
 #include <stddef.h>
 
+#include "ekf_util.h"
+
 const ca_settings_t ca_default_settings = {
     .accel_increment_var = EKF_C(1.0),
     .position_var = EKF_C(1.0),
@@ -13,13 +15,6 @@ const ca_settings_t ca_default_settings = {
     .max_dt = EKF_C(10.0),
     .var_floor = EKF_C(1e-12),
 };
-
-static void count(uint32_t *c)
-{
-    if (*c != UINT32_MAX) {
-        ++*c;
-    }
-}
 
 static ekf_status_t check_dims_dt(uint8_t dims, ekf_scalar_t dt)
 {
@@ -98,20 +93,15 @@ ekf_status_t ca_jacobian(uint8_t dims, ekf_scalar_t dt, ekf_scalar_t *Jx, ekf_sc
     return EKF_OK;
 }
 
-static int in_range(ekf_scalar_t v, ekf_scalar_t lo, ekf_scalar_t hi)
-{
-    return ekf_isfinite(v) && v >= lo && v <= hi;
-}
-
 ekf_status_t ca_settings_check(const ca_settings_t *s)
 {
     const ekf_scalar_t big = EKF_C(1e12);
     if (s == NULL) {
         return EKF_ERR_NULL;
     }
-    if (!in_range(s->accel_increment_var, EKF_C(0), big) || !in_range(s->position_var, EKF_C(1e-12), big) ||
-        !in_range(s->gate_sigma, EKF_C(0), EKF_C(1e3)) || !in_range(s->max_dt, EKF_C(1e-6), EKF_C(1e6)) ||
-        !in_range(s->var_floor, EKF_C(0), EKF_C(1))) {
+    if (!ekf_in_range(s->accel_increment_var, EKF_C(0), big) || !ekf_in_range(s->position_var, EKF_C(1e-12), big) ||
+        !ekf_in_range(s->gate_sigma, EKF_C(0), EKF_C(1e3)) || !ekf_in_range(s->max_dt, EKF_C(1e-6), EKF_C(1e6)) ||
+        !ekf_in_range(s->var_floor, EKF_C(0), EKF_C(1))) {
         return EKF_ERR_SETTINGS;
     }
     return EKF_OK;
@@ -162,7 +152,7 @@ ekf_status_t ca_init(ca_ekf_t *f, const ca_settings_t *s, uint8_t dims, const ek
 
 static ekf_status_t reject(ca_ekf_t *f, ekf_status_t st)
 {
-    count(&f->rejected);
+    ekf_count(&f->rejected);
     return st;
 }
 
@@ -223,7 +213,7 @@ ekf_status_t ca_predict(ca_ekf_t *f, ekf_scalar_t dt)
     for (i = 0; i < f->n; ++i) {
         f->x[i] = xn[i];
     }
-    count(&f->predicts);
+    ekf_count(&f->predicts);
     return EKF_OK;
 }
 
@@ -261,7 +251,7 @@ ekf_status_t ca_update_position(ca_ekf_t *f, const ekf_scalar_t *z, ekf_innov_t 
                                                   f->settings.position_var, f->settings.gate_sigma,
                                                   f->settings.var_floor, (info != NULL) ? &info[k] : NULL);
         if (st == EKF_GATED) {
-            count(&f->gated);
+            ekf_count(&f->gated);
             result = EKF_GATED;
         } else if (st != EKF_OK) {
             for (i = 0; i < n; ++i) {
@@ -272,7 +262,7 @@ ekf_status_t ca_update_position(ca_ekf_t *f, const ekf_scalar_t *z, ekf_innov_t 
             }
             return reject(f, st);
         } else {
-            count(&f->fused);
+            ekf_count(&f->fused);
         }
     }
     return result;

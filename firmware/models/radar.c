@@ -5,6 +5,8 @@
 
 #include <stddef.h>
 
+#include "ekf_util.h"
+
 const radar_settings_t radar_default_settings = {
     .accel_var_x = EKF_C(9.0), /* 3 m/s^2, 1 sigma */
     .accel_var_y = EKF_C(9.0),
@@ -17,13 +19,6 @@ const radar_settings_t radar_default_settings = {
     .max_dt = EKF_C(10.0),
     .var_floor = EKF_C(1e-12),
 };
-
-static void count(uint32_t *c)
-{
-    if (*c != UINT32_MAX) {
-        ++*c;
-    }
-}
 
 /* rho and 1/rho at x, or EKF_ERR_SINGULAR below min_range. The comparison is made on
  * rho^2 against min_range^2 first, so a state at the origin never reaches a division. */
@@ -105,22 +100,17 @@ ekf_status_t radar_jacobian(const ekf_scalar_t x[RADAR_N], ekf_scalar_t min_rang
     return EKF_OK;
 }
 
-static int in_range(ekf_scalar_t v, ekf_scalar_t lo, ekf_scalar_t hi)
-{
-    return ekf_isfinite(v) && v >= lo && v <= hi;
-}
-
 ekf_status_t radar_settings_check(const radar_settings_t *s)
 {
     const ekf_scalar_t big = EKF_C(1e12), tiny = EKF_C(1e-12);
     if (s == NULL) {
         return EKF_ERR_NULL;
     }
-    if (!in_range(s->accel_var_x, EKF_C(0), big) || !in_range(s->accel_var_y, EKF_C(0), big) ||
-        !in_range(s->rho_var, tiny, big) || !in_range(s->phi_var, tiny, EKF_C(10)) ||
-        !in_range(s->rhodot_var, tiny, big) || !in_range(s->lidar_var, tiny, big) ||
-        !in_range(s->min_range, EKF_C(1e-6), EKF_C(1e6)) || !in_range(s->gate_sigma, EKF_C(0), EKF_C(1e3)) ||
-        !in_range(s->max_dt, EKF_C(1e-6), EKF_C(1e6)) || !in_range(s->var_floor, EKF_C(0), EKF_C(1))) {
+    if (!ekf_in_range(s->accel_var_x, EKF_C(0), big) || !ekf_in_range(s->accel_var_y, EKF_C(0), big) ||
+        !ekf_in_range(s->rho_var, tiny, big) || !ekf_in_range(s->phi_var, tiny, EKF_C(10)) ||
+        !ekf_in_range(s->rhodot_var, tiny, big) || !ekf_in_range(s->lidar_var, tiny, big) ||
+        !ekf_in_range(s->min_range, EKF_C(1e-6), EKF_C(1e6)) || !ekf_in_range(s->gate_sigma, EKF_C(0), EKF_C(1e3)) ||
+        !ekf_in_range(s->max_dt, EKF_C(1e-6), EKF_C(1e6)) || !ekf_in_range(s->var_floor, EKF_C(0), EKF_C(1))) {
         return EKF_ERR_SETTINGS;
     }
     return EKF_OK;
@@ -160,7 +150,7 @@ ekf_status_t radar_init(radar_ekf_t *f, const radar_settings_t *s, const ekf_sca
 
 static ekf_status_t reject(radar_ekf_t *f, ekf_status_t st)
 {
-    count(st == EKF_ERR_SINGULAR ? &f->singular : &f->rejected);
+    ekf_count(st == EKF_ERR_SINGULAR ? &f->singular : &f->rejected);
     return st;
 }
 
@@ -206,7 +196,7 @@ ekf_status_t radar_predict(radar_ekf_t *f, ekf_scalar_t dt)
     for (i = 0; i < RADAR_N; ++i) {
         f->x[i] = xn[i];
     }
-    count(&f->predicts);
+    ekf_count(&f->predicts);
     return EKF_OK;
 }
 
@@ -257,7 +247,7 @@ static void count_components(radar_ekf_t *f, const radar_report_t *rep, int comp
 {
     int m;
     for (m = 0; m < components; ++m) {
-        count(rep->status[m] == EKF_OK ? &f->fused : &f->gated);
+        ekf_count(rep->status[m] == EKF_OK ? &f->fused : &f->gated);
     }
 }
 

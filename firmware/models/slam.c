@@ -5,6 +5,8 @@
 
 #include <stddef.h>
 
+#include "ekf_util.h"
+
 const slam_settings_t slam_default_settings = {
     .vel_var = EKF_C(0.01),         /* 0.1 m/s */
     .yaw_rate_var = EKF_C(0.0003),  /* ~1 deg/s */
@@ -15,18 +17,6 @@ const slam_settings_t slam_default_settings = {
     .max_dt = EKF_C(1.0),
     .var_floor = EKF_C(1e-12),
 };
-
-static void count(uint32_t *c)
-{
-    if (*c != UINT32_MAX) {
-        ++*c;
-    }
-}
-
-static int in_range(ekf_scalar_t v, ekf_scalar_t lo, ekf_scalar_t hi)
-{
-    return ekf_isfinite(v) && v >= lo && v <= hi;
-}
 
 static ekf_status_t check_dt(ekf_scalar_t dt)
 {
@@ -186,10 +176,10 @@ ekf_status_t slam_settings_check(const slam_settings_t *s)
     if (s == NULL) {
         return EKF_ERR_NULL;
     }
-    if (!in_range(s->vel_var, EKF_C(0), big) || !in_range(s->yaw_rate_var, EKF_C(0), big) ||
-        !in_range(s->range_var, tiny, big) || !in_range(s->bearing_var, tiny, EKF_C(10)) ||
-        !in_range(s->min_range, EKF_C(1e-6), EKF_C(1e6)) || !in_range(s->gate_sigma, EKF_C(0), EKF_C(1e3)) ||
-        !in_range(s->max_dt, EKF_C(1e-6), EKF_C(1e6)) || !in_range(s->var_floor, EKF_C(0), EKF_C(1))) {
+    if (!ekf_in_range(s->vel_var, EKF_C(0), big) || !ekf_in_range(s->yaw_rate_var, EKF_C(0), big) ||
+        !ekf_in_range(s->range_var, tiny, big) || !ekf_in_range(s->bearing_var, tiny, EKF_C(10)) ||
+        !ekf_in_range(s->min_range, EKF_C(1e-6), EKF_C(1e6)) || !ekf_in_range(s->gate_sigma, EKF_C(0), EKF_C(1e3)) ||
+        !ekf_in_range(s->max_dt, EKF_C(1e-6), EKF_C(1e6)) || !ekf_in_range(s->var_floor, EKF_C(0), EKF_C(1))) {
         return EKF_ERR_SETTINGS;
     }
     return EKF_OK;
@@ -237,7 +227,7 @@ ekf_status_t slam_init(slam_ekf_t *f, const slam_settings_t *s, const ekf_scalar
 
 static ekf_status_t reject(slam_ekf_t *f, ekf_status_t st)
 {
-    count(st == EKF_ERR_SINGULAR ? &f->singular : &f->rejected);
+    ekf_count(st == EKF_ERR_SINGULAR ? &f->singular : &f->rejected);
     return st;
 }
 
@@ -288,7 +278,7 @@ ekf_status_t slam_predict(slam_ekf_t *f, const ekf_scalar_t u[3], ekf_scalar_t d
         f->x[i] = pn[i];
     }
     f->x[SLAM_PSI] = ekf_wrap_pi(f->x[SLAM_PSI]);
-    count(&f->predicts);
+    ekf_count(&f->predicts);
     return EKF_OK;
 }
 
@@ -421,9 +411,9 @@ static ekf_status_t update_landmark(slam_ekf_t *f, const slam_observation_t *obs
                                f->settings.var_floor, &rep->innov[row]);
         rep->status[row] = st;
         if (st == EKF_OK) {
-            count(&f->fused);
+            ekf_count(&f->fused);
         } else if (st == EKF_GATED) {
-            count(&f->gated);
+            ekf_count(&f->gated);
             result = EKF_GATED;
         } else {
             result = st;

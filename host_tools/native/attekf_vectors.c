@@ -149,7 +149,7 @@ int main(int argc, char **argv)
             mag[k] += 0.3 * gauss();
         }
         if (i == 700) {
-            gyr[1] = NAN; /* refused gyro, the rest of the sample is used */
+            gyr[1] = NAN; /* a NaN gyro: the whole sample is refused */
         }
         if (i == 900) {
             acc[2] = 500.0; /* beyond accel_range */

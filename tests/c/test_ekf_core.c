@@ -269,6 +269,176 @@ static void test_update_diagonal_floor(void)
     TEST_ASSERT_TRUE(P[0] >= EKF_C(1e-6));
 }
 
+/* Indefinite covariances are refused, not floored (x, P unchanged); info is written. */
+static void test_update_refuses_indefinite_covariance(void)
+{
+    /* eigenvalues 3 and -1: the update along e0 would give P_11 = 1 - 4 / 2 = -1 */
+    ekf_scalar_t P[4] = {EKF_C(1), EKF_C(2), EKF_C(2), EKF_C(1)};
+    ekf_scalar_t x[2] = {EKF_C(0.5), EKF_C(-0.5)};
+    ekf_scalar_t Pb[4], xb[2];
+    const uint8_t idx0 = 0, idx1 = 1;
+    const ekf_scalar_t one = EKF_C(1);
+    ekf_hrow_t h = {&idx0, &one, 1};
+    ekf_innov_t info;
+    memcpy(Pb, P, sizeof P);
+    memcpy(xb, x, sizeof x);
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NUMERIC, ekf_update_scalar(x, P, 2, &h, EKF_C(0.3), EKF_C(1), EKF_C(0), EKF_C(1e-6), &info));
+    TEST_ASSERT_EQUAL_MEMORY(Pb, P, sizeof P);
+    TEST_ASSERT_EQUAL_MEMORY(xb, x, sizeof x);
+    /* S was formed: the diagnostics say what was refused */
+    TEST_ASSERT_TRUE(info.innovation == EKF_C(0.3));
+    TEST_ASSERT_TRUE(info.variance == EKF_C(2));
+    TEST_ASSERT_TRUE(info.test_ratio == EKF_C(0));
+    /* a variance of -1 is never floored to var_floor: an update along the other state is
+     * refused too (the -1 is not raised behind the caller's back) */
+    P[0] = EKF_C(-1);
+    P[1] = P[2] = EKF_C(0);
+    memcpy(Pb, P, sizeof P);
+    h.idx = &idx1;
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NUMERIC, ekf_update_scalar(x, P, 2, &h, EKF_C(0.3), EKF_C(1), EKF_C(0), EKF_C(1e-6), NULL));
+    TEST_ASSERT_EQUAL_MEMORY(Pb, P, sizeof P);
+    TEST_ASSERT_EQUAL_MEMORY(xb, x, sizeof x);
+    /* along the negative variance itself: S = -1 + 1 = 0 < r_var */
+    h.idx = &idx0;
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NUMERIC, ekf_update_scalar(x, P, 2, &h, EKF_C(0.3), EKF_C(1), EKF_C(0), EKF_C(1e-6), NULL));
+    TEST_ASSERT_EQUAL_MEMORY(Pb, P, sizeof P);
+}
+
+/* Rank-one covariances P = a (1, c)(1, c)^T, positive semi-definite before their entries
+ * are rounded, updated with a near-perfect measurement of x0: the second variance comes
+ * out at rounding size (zero in exact arithmetic), sometimes negative. Always accepted and
+ * floored: the refusal is for indefiniteness beyond rounding only. */
+static void test_update_floors_rounding_size_variances(void)
+{
+    ts_rng_t r;
+    int trial, negative_raw = 0;
+    const uint8_t idx0 = 0;
+    const ekf_scalar_t one = EKF_C(1), floor = EKF_C(1e-12);
+    const ekf_hrow_t h = {&idx0, &one, 1};
+    ts_rng_seed(&r, 14);
+    for (trial = 0; trial < 2000; ++trial) {
+        const double a = ts_uniform_in(&r, 0.1, 10.0), c = ts_uniform_in(&r, -10.0, 10.0);
+        ekf_scalar_t P[4], x[2] = {EKF_C(0), EKF_C(0)};
+        ekf_scalar_t rv;
+        P[0] = (ekf_scalar_t)a;
+        P[1] = P[2] = (ekf_scalar_t)(a * c);
+        P[3] = (ekf_scalar_t)(a * c * c);
+        rv = P[0] * EKF_SCALAR_EPS * EKF_C(1e-3); /* far below the rounding of P */
+        {
+            /* what the routine computes before flooring */
+            const ekf_scalar_t s = P[0] + rv, k1 = P[1] * (EKF_C(1) / s);
+            negative_raw += (P[3] - k1 * P[1]) < EKF_C(0);
+        }
+        TEST_ASSERT_EQUAL_INT(EKF_OK, ekf_update_scalar(x, P, 2, &h, EKF_C(0.1), rv, EKF_C(0), floor, NULL));
+        TEST_ASSERT_TRUE(P[0] >= floor && P[3] >= floor);
+    }
+    printf("rank-one updates: %d of 2000 with a rounding-negative variance, all floored\n", negative_raw);
+    TEST_ASSERT_TRUE(negative_raw > 0); /* the case this test is about occurred */
+}
+
+/* info is zero on the paths that return before S is formed (no stale or uninitialised
+ * diagnostics for a caller that copies them). */
+static void test_update_info_always_written(void)
+{
+    ekf_scalar_t P[4] = {EKF_C(1), EKF_C(0), EKF_C(0), EKF_C(1)};
+    ekf_scalar_t x[2] = {EKF_C(0), EKF_C(0)};
+    const uint8_t idx0 = 0, bad_idx = 5;
+    const ekf_scalar_t one = EKF_C(1), nan_v = (ekf_scalar_t)NAN;
+    ekf_hrow_t h = {&idx0, &one, 1};
+    ekf_innov_t info;
+    const ekf_innov_t zero = {EKF_C(0), EKF_C(0), EKF_C(0)};
+    memset(&info, 0x5A, sizeof info);
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, ekf_update_scalar(x, P, 2, &h, nan_v, EKF_C(1), EKF_C(3), EKF_C(0), &info));
+    TEST_ASSERT_EQUAL_MEMORY(&zero, &info, sizeof info);
+    memset(&info, 0x5A, sizeof info);
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_RANGE, ekf_update_scalar(x, P, 2, &h, EKF_C(1), EKF_C(0), EKF_C(3), EKF_C(0), &info));
+    TEST_ASSERT_EQUAL_MEMORY(&zero, &info, sizeof info);
+    memset(&info, 0x5A, sizeof info);
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, ekf_update_scalar(NULL, P, 2, &h, EKF_C(1), EKF_C(1), EKF_C(3), EKF_C(0), &info));
+    TEST_ASSERT_EQUAL_MEMORY(&zero, &info, sizeof info);
+    h.idx = &bad_idx;
+    memset(&info, 0x5A, sizeof info);
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_DIMENSION, ekf_update_scalar(x, P, 2, &h, EKF_C(1), EKF_C(1), EKF_C(3), EKF_C(0), &info));
+    TEST_ASSERT_EQUAL_MEMORY(&zero, &info, sizeof info);
+    /* no gate: the ratio is 0, innovation and S are set */
+    h.idx = &idx0;
+    memset(&info, 0x5A, sizeof info);
+    TEST_ASSERT_EQUAL_INT(EKF_OK, ekf_update_scalar(x, P, 2, &h, EKF_C(1), EKF_C(1), EKF_C(0), EKF_C(0), &info));
+    TEST_ASSERT_TRUE(info.innovation == EKF_C(1) && info.variance == EKF_C(2) && info.test_ratio == EKF_C(0));
+}
+
+/* ekf_cov_ensure_pd meets its header: afterwards ekf_cov_is_pd holds with the same margin,
+ * the variances are >= the floor, P is symmetric; non-finite input is refused unchanged;
+ * a zero margin and values near the top of the range terminate. */
+static void test_ensure_pd_repairs_or_refuses(void)
+{
+    ts_rng_t r;
+    ekf_scalar_t work[NMAX * (NMAX + 1) / 2];
+    const ekf_scalar_t margin = EKF_C(1e-4), floor = EKF_C(1e-9);
+    int trial, repaired = 0, i;
+    ts_rng_seed(&r, 15);
+    for (trial = 0; trial < 500; ++trial) {
+        const int n = 2 + (int)(ts_uniform(&r) * (NMAX - 1));
+        ekf_scalar_t P[NMAX * NMAX];
+        int a, b, rounds;
+        /* symmetric, entries of mixed sign and size: most are indefinite */
+        for (a = 0; a < n; ++a) {
+            for (b = 0; b <= a; ++b) {
+                const double v = ts_uniform_in(&r, -1.0, 1.0) * pow(10.0, ts_uniform_in(&r, -3.0, 3.0));
+                P[a * n + b] = P[b * n + a] = (ekf_scalar_t)v;
+            }
+        }
+        rounds = ekf_cov_ensure_pd(P, (uint8_t)n, margin, floor, work);
+        TEST_ASSERT_TRUE(rounds >= 0);
+        repaired += rounds > 0;
+        TEST_ASSERT_EQUAL_INT(1, ekf_cov_is_pd(P, (uint8_t)n, margin, work));
+        TEST_ASSERT_TRUE(ts_is_symmetric_exact(P, n));
+        for (a = 0; a < n; ++a) {
+            TEST_ASSERT_TRUE(P[a * n + a] >= floor);
+        }
+        /* a second call has nothing to do */
+        TEST_ASSERT_EQUAL_INT(0, ekf_cov_ensure_pd(P, (uint8_t)n, margin, floor, work));
+    }
+    TEST_ASSERT_TRUE(repaired > 400);
+    {
+        ekf_scalar_t P[9] = {EKF_C(1), EKF_C(0.5), EKF_C(0), EKF_C(0.5), EKF_C(1), EKF_C(0), EKF_C(0), EKF_C(0), EKF_C(1)};
+        ekf_scalar_t before[9];
+        /* an infinite variance or a NaN correlation: refused, P unchanged */
+        P[4] = (ekf_scalar_t)INFINITY;
+        memcpy(before, P, sizeof P);
+        TEST_ASSERT_EQUAL_INT(-1, ekf_cov_ensure_pd(P, 3, margin, floor, work));
+        TEST_ASSERT_EQUAL_MEMORY(before, P, sizeof P);
+        P[4] = EKF_C(1);
+        P[1] = P[3] = (ekf_scalar_t)NAN;
+        memcpy(before, P, sizeof P);
+        TEST_ASSERT_EQUAL_INT(-1, ekf_cov_ensure_pd(P, 3, margin, floor, work));
+        TEST_ASSERT_EQUAL_MEMORY(before, P, sizeof P);
+        /* arguments out of range */
+        P[1] = P[3] = EKF_C(0.5);
+        TEST_ASSERT_EQUAL_INT(-1, ekf_cov_ensure_pd(P, 3, margin, EKF_C(0), work));
+        TEST_ASSERT_EQUAL_INT(-1, ekf_cov_ensure_pd(P, 3, EKF_C(1), floor, work));
+        TEST_ASSERT_EQUAL_INT(-1, ekf_cov_ensure_pd(P, 0, margin, floor, work));
+        TEST_ASSERT_EQUAL_INT(-1, ekf_cov_ensure_pd(NULL, 3, margin, floor, work));
+        /* a zero margin: terminates with a positive definite P */
+        P[1] = P[3] = EKF_C(2);
+        TEST_ASSERT_TRUE(ekf_cov_ensure_pd(P, 3, EKF_C(0), floor, work) > 0);
+        TEST_ASSERT_EQUAL_INT(1, ekf_cov_is_pd(P, 3, EKF_C(0), work));
+        /* variances near the top of the range, correlation 1 (singular): the loading
+         * overflows before it helps, the fallback keeps the (finite) variances */
+        for (i = 0; i < 9; ++i) {
+            P[i] = EKF_C(0);
+        }
+        P[0] = P[4] = P[8] = (ekf_scalar_t)1e308;
+#if defined(EKF_SCALAR_FLOAT)
+        P[0] = P[4] = P[8] = (ekf_scalar_t)3e38;
+#endif
+        P[1] = P[3] = P[0];
+        TEST_ASSERT_TRUE(ekf_cov_ensure_pd(P, 3, margin, floor, work) > 0);
+        TEST_ASSERT_TRUE(ekf_all_finite(P, 9));
+        TEST_ASSERT_EQUAL_INT(1, ekf_cov_is_pd(P, 3, margin, work));
+    }
+}
+
 static void test_limit_variance_is_a_congruence(void)
 {
     ts_rng_t r;
@@ -326,6 +496,10 @@ int main(void)
     RUN_TEST(test_update_matches_textbook);
     RUN_TEST(test_update_gate_and_refusals);
     RUN_TEST(test_update_diagonal_floor);
+    RUN_TEST(test_update_refuses_indefinite_covariance);
+    RUN_TEST(test_update_floors_rounding_size_variances);
+    RUN_TEST(test_update_info_always_written);
+    RUN_TEST(test_ensure_pd_repairs_or_refuses);
     RUN_TEST(test_limit_variance_is_a_congruence);
     RUN_TEST(test_wrap_pi);
     RUN_TEST(test_status_names);

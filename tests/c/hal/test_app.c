@@ -406,6 +406,10 @@ static void test_bad_values_are_rejected_and_counted(void)
     run_to_end();
     TEST_ASSERT_EQUAL_UINT32(2u, counter(HAL_CNT_EKF_REJECTED));
     TEST_ASSERT_TRUE((flags_since(0) & HAL_FLAG_EKF_REJECT) != 0u);
+    /* the filter refused those two samples whole, the node fused them without the bad
+     * sensor: a prediction for every sample after the alignment on samples 0-9 */
+    TEST_ASSERT_EQUAL_UINT32(2u, att_diag(app_filter(&app))->rejected);
+    TEST_ASSERT_EQUAL_UINT32(17u, att_diag(app_filter(&app))->steps);
     TEST_ASSERT_TRUE(isfinite(app_last_output(&app)->euler[0]));
     TEST_ASSERT_TRUE((app_last_output(&app)->flags & HAL_FLAG_ALIGNED) != 0u);
 }

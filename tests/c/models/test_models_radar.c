@@ -298,11 +298,13 @@ static void test_rollback_on_numeric_failure(void)
     radar_ekf_t f, saved;
     radar_report_t rep;
     ekf_scalar_t z[3] = {EKF_C(10.5), EKF_C(0.8), EKF_C(0.0)};
-    /* target at 45 deg, 10 m: H_rho = (0.71, 0.71), H_phi = (-0.07, 0.07). With the position
-     * block [[1, 2], [2, 1]] (indefinite, positive diagonal) H_rho P H_rho^T = 3 > 0 but,
-     * after the range update, H_phi P H_phi^T < 0: S would be below R. */
+    /* target at 45 deg, 10 m: H_rho = (0.71, 0.71), H_phi = (-0.07, 0.07). P: unit variances,
+     * vx correlated +0.9 with px and -0.9 with py (indefinite: the (px, py, vx) block has
+     * determinant -0.62). Along H_rho the vx correlations cancel and the range update is a
+     * valid one, but after it the bearing update would give vx a variance of -0.48. */
     init(&f, &radar_default_settings, 7.0710678, 7.0710678, 0.0, 0.0, 1.0);
-    f.P[RADAR_PX * RADAR_N + RADAR_PY] = f.P[RADAR_PY * RADAR_N + RADAR_PX] = EKF_C(2.0);
+    f.P[RADAR_PX * RADAR_N + RADAR_VX] = f.P[RADAR_VX * RADAR_N + RADAR_PX] = EKF_C(0.9);
+    f.P[RADAR_PY * RADAR_N + RADAR_VX] = f.P[RADAR_VX * RADAR_N + RADAR_PY] = EKF_C(-0.9);
     saved = f;
     TEST_ASSERT_EQUAL_INT(EKF_ERR_NUMERIC, radar_update_radar(&f, z, &rep));
     TEST_ASSERT_EQUAL_INT(EKF_OK, rep.status[RADAR_RHO]);

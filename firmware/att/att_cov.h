@@ -1,0 +1,116 @@
+/*
+ * att_cov.h - the covariance P of the attitude filter: its storage and every operation the
+ * filter applies to it. The stages (att_align.c, att_predict.c, att_update.c) change P only
+ * through these functions and read it only by value, so that an implementation may store P
+ * in any form: full row-major (att_cov_ref.c), packed symmetric, or 32-bit fixed point with
+ * a scale per state. No function hands out a pointer into P.
+ *
+ * Indices are the state indices of att_defs.h (0 .. ATT_N-1); callers pass valid ones.
+ * Every operation keeps P exactly symmetric. Which operations keep P positive
+ * (semi-)definite is stated with each; the guard (att_cov_ensure_pd) runs once at the end of
+ * every public call of the filter (docs/derivation.md, "Covariance bounds").
+ *
+ * Implementation (ekf_config.h): ATT_COV_REFERENCE, full row-major 9x9 on the generic
+ * routines of ekf.h and the generated att_gen_cov_propagate (att_cov_ref.c).
+ */
+#ifndef ATT_COV_H
+#define ATT_COV_H
+
+#include "att_defs.h"
+#include "att_gen.h"
+#include "ekf.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* The storage. Its layout belongs to the implementation: read it only through the
+ * functions below (att_cov_to_full for all of it). */
+#if defined(ATT_COV_REFERENCE)
+typedef struct {
+    ekf_scalar_t P[ATT_N * ATT_N]; /* row-major, exactly symmetric */
+} att_cov_t;
+#else
+#error "att_cov.h: no covariance implementation selected (see ekf_config.h)"
+#endif
+
+/* ---- set and read ---- */
+
+/* P = diag(var): every off-diagonal entry zero. */
+void att_cov_set_diag(att_cov_t *c, const ekf_scalar_t var[ATT_N]);
+/* P_ij. */
+ekf_scalar_t att_cov_get(const att_cov_t *c, int i, int j);
+/* P_ii. */
+ekf_scalar_t att_cov_var(const att_cov_t *c, int i);
+/* All of P, row-major, in the filter's scalar type. */
+void att_cov_to_full(const att_cov_t *c, ekf_scalar_t P[ATT_N * ATT_N]);
+
+/* ---- prediction ---- */
+
+/* P <- F P F^T with F = I + D, d: the values of D in the order of att_gen_f_pattern, all
+ * finite (the caller checks). A congruence. */
+void att_cov_propagate(att_cov_t *c, const ekf_scalar_t d[ATT_GEN_F_NNZ]);
+/* The first-order variance of each angle's increment over the step, var[i] =
+ * (D P D^T)_ii for the rows ATT_PHI + i (i = 0, 1, 2) of D (d as for att_cov_propagate),
+ * evaluated on P before the propagation; >= 0 (rounding below zero is returned as 0). */
+void att_cov_increment_var(const att_cov_t *c, const ekf_scalar_t d[ATT_GEN_F_NNZ], ekf_scalar_t var[3]);
+/* P += G diag(var) G^T for the body-rate noise input (var[j] >= 0 per body axis j),
+ * G = [I; 0; g] with g the Euler-rate block (row-major 3x3). Adds a positive
+ * semi-definite matrix. */
+void att_cov_add_rate_noise(att_cov_t *c, const ekf_scalar_t g[9], const ekf_scalar_t var[3]);
+/* P_ii += var (>= 0) for i in first .. first+len-1. */
+void att_cov_add_diag(att_cov_t *c, int first, int len, ekf_scalar_t var);
+/* P_ii += var (>= 0) for the one state i. */
+void att_cov_add_var(att_cov_t *c, int i, ekf_scalar_t var);
+/* P_ii <- P_ii + rel P_ii (rel >= 0) for i in first .. first+len-1. */
+void att_cov_scale_diag(att_cov_t *c, int first, int len, ekf_scalar_t rel);
+
+/* ---- bounds and remaps ---- */
+
+/* P_ii <- max(P_ii, floor) for every i (adds a positive semi-definite matrix), for
+ * variances that rounding left below the floor or small positive ones. Returns 0, or -1
+ * with P unchanged if a variance is not finite or negative beyond rounding (below -32 n eps
+ * times the largest variance; fixed point: -32 n LSB (1 + the largest variance)): no floor
+ * hides that (the caller refuses). */
+int att_cov_floor_diag(att_cov_t *c, ekf_scalar_t floor);
+/* Row and column i zero, P_ii = var (> 0): state i uncorrelated with the others (a reset).
+ * Keeps P positive (semi-)definite. */
+void att_cov_reset_state(att_cov_t *c, int i, ekf_scalar_t var);
+/* If P_ii > max_var (> 0): row and column i scaled by sqrt(max_var / P_ii), a congruence.
+ * Returns 1 if P was changed, else 0 (also for a non-finite P_ii, left for the guard to
+ * refuse). */
+int att_cov_limit_variance(att_cov_t *c, int i, ekf_scalar_t max_var);
+/* Row and column i negated (diagonal unchanged): the covariance of the state with x_i
+ * replaced by -x_i, a congruence (the pitch remap, att_model_normalise). */
+void att_cov_negate_state(att_cov_t *c, int i);
+
+/* ---- measurement updates ----
+ * One scalar measurement, innovation nu, noise variance r_var > 0, gate in sigmas (<= 0:
+ * off), diagonal floor var_floor; x is the state the gain is applied to. The semantics of
+ * ekf_update_scalar (ekf.h): EKF_OK, EKF_GATED, or an error with x and P unchanged; info
+ * (may be NULL) as documented there. */
+
+/* H = e_idx (a unit row: a body rate, or the heading). */
+ekf_status_t att_cov_update_unit(att_cov_t *c, ekf_scalar_t x[ATT_N], int idx, ekf_scalar_t nu,
+                                 ekf_scalar_t r_var, ekf_scalar_t gate, ekf_scalar_t var_floor,
+                                 ekf_innov_t *info);
+/* H with h_phi at ATT_PHI and h_theta at ATT_THETA (an accelerometer component). */
+ekf_status_t att_cov_update_tilt(att_cov_t *c, ekf_scalar_t x[ATT_N], ekf_scalar_t h_phi,
+                                 ekf_scalar_t h_theta, ekf_scalar_t nu, ekf_scalar_t r_var,
+                                 ekf_scalar_t gate, ekf_scalar_t var_floor, ekf_innov_t *info);
+
+/* ---- definiteness ---- */
+
+/* 1 if P has an LDL^T factorisation (in the scalar type) with every pivot
+ * d_j >= rel_margin P_jj > 0 (ekf_cov_is_pd), else 0. */
+int att_cov_is_pd(const att_cov_t *c, ekf_scalar_t rel_margin);
+/* The guard: if att_cov_is_pd fails, P is repaired by diagonal loading
+ * (ekf_cov_ensure_pd); afterwards every P_ii >= var_floor. Returns the number of repair
+ * rounds, 0 if P passed, -1 with P unchanged if P has a non-finite entry. */
+int att_cov_ensure_pd(att_cov_t *c, ekf_scalar_t rel_margin, ekf_scalar_t var_floor);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* ATT_COV_H */

@@ -1,0 +1,139 @@
+/*
+ * att_predict.c - the prediction stage: transition, F P F^T, process noise, variance
+ * limits, the accelerometer low-pass carried with the body (docs/derivation.md,
+ * "Transition", "Process noise", "Covariance bounds", "Linear acceleration").
+ */
+#include <stddef.h>
+
+#include "att_gen.h"
+#include "att_internal.h"
+#include "att_model.h"
+#include "ekf_util.h"
+
+/* Keeps every variance below a physical bound (docs/derivation.md, "Covariance bounds"):
+ * body rates within the gyro range, roll and pitch within half a turn, Euler rates within
+ * what W can produce from in-range body rates at the gimbal limit. Only reached under
+ * inputs far outside normal use (very long steps at extreme rates), where it keeps P
+ * finite; a congruence, so P stays positive definite. */
+static void limit_variances(att_vars_t *v, const att_settings_t *s)
+{
+    const ekf_scalar_t rate_max = ekf_sq(s->gyro_range);
+    /* The Euler-rate bound is at least (3 gyro_range)^2 (sec >= 1): its cosine is evaluated
+     * only when a variance exceeds that, never in normal use. Capping a body rate does not
+     * change the Euler-rate variances, so the test before the loop holds in it. */
+    ekf_scalar_t euler_rate_max = ekf_sq(ekf_mul(s->gyro_range, EKF_C(3)));
+    int i;
+    for (i = ATT_PHID; i <= ATT_PSID; ++i) {
+        if (att_cov_var(&v->cov, i) > euler_rate_max) {
+            const ekf_scalar_t sec_lim = ekf_div(EKF_C(1), ekf_cos(s->gimbal_limit));
+            euler_rate_max = ekf_sq(ekf_mul(s->gyro_range, ekf_add(EKF_C(1), ekf_mul(EKF_C(2), sec_lim))));
+            break;
+        }
+    }
+    for (i = 0; i < 3; ++i) {
+        (void)att_cov_limit_variance(&v->cov, ATT_P + i, rate_max);
+        (void)att_cov_limit_variance(&v->cov, ATT_PHID + i, euler_rate_max);
+    }
+    (void)att_cov_limit_variance(&v->cov, ATT_PHI, ekf_sq(EKF_PI));
+    (void)att_cov_limit_variance(&v->cov, ATT_THETA, ekf_sq(EKF_HALF_PI));
+}
+
+static void cross(const ekf_scalar_t a[3], const ekf_scalar_t b[3], ekf_scalar_t out[3])
+{
+    out[0] = ekf_sub(ekf_mul(a[1], b[2]), ekf_mul(a[2], b[1]));
+    out[1] = ekf_sub(ekf_mul(a[2], b[0]), ekf_mul(a[0], b[2]));
+    out[2] = ekf_sub(ekf_mul(a[0], b[1]), ekf_mul(a[1], b[0]));
+}
+
+/* The accelerometer low-pass (accel_lpf_tau) lives in a frame that turns with the body:
+ * every prediction carries the filtered specific force into the new body frame with the
+ * body rates (dv/dt = -w x v for a vector fixed in the earth frame), every accelerometer
+ * sample is blended in (att_update.c). Gravity is earth-fixed, so it passes without lag;
+ * linear acceleration that averages to zero in the earth frame (shaking, vibration) is
+ * filtered out (docs/derivation.md, "Linear acceleration"). */
+static void accel_lp_turn(att_vars_t *v, ekf_scalar_t dt)
+{
+    ekf_scalar_t th[3], c1[3], c2[3];
+    int i;
+    if (!v->accel_lp_valid) {
+        return;
+    }
+    for (i = 0; i < 3; ++i) {
+        th[i] = ekf_mul(v->x[ATT_P + i], dt);
+    }
+    if (ekf_add(ekf_add(ekf_sq(th[0]), ekf_sq(th[1])), ekf_sq(th[2])) > EKF_C(0.04)) {
+        /* more than 0.2 rad in one step (a gap, or beyond any IMU's rate): the series
+         * below would be wrong; start again from the next sample */
+        v->accel_lp_valid = 0u;
+        return;
+    }
+    /* second order in th = w dt: v - th x v + (th x (th x v)) / 2; first order loses
+     * gravity at fast rotation (|th| ~ 0.05 rad per sample) */
+    cross(th, v->accel_lp, c1);
+    cross(th, c1, c2);
+    for (i = 0; i < 3; ++i) {
+        v->accel_lp[i] = ekf_mac(ekf_sub(v->accel_lp[i], c1[i]), EKF_C(0.5), c2[i]);
+    }
+}
+
+ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scalar_t dt)
+{
+    ekf_scalar_t xn[ATT_N];
+    ekf_scalar_t d[ATT_GEN_F_NNZ];
+    ekf_scalar_t g[9], inc_var[3];
+    att_trig_t tm, tn;
+    int i;
+
+    att_model_transition(v->x, NULL, dt, s->gimbal_limit, xn, &tm, &tn);
+    if (!ekf_all_finite(xn, ATT_N)) {
+        return EKF_ERR_NUMERIC;
+    }
+    att_gen_transition_jacobian(&tm, &tn, v->x, dt, d);
+    if (!ekf_all_finite(d, ATT_GEN_F_NNZ)) {
+        return EKF_ERR_NUMERIC;
+    }
+    att_cov_increment_var(&v->cov, d, inc_var);
+    att_cov_propagate(&v->cov, d);
+
+    /* Q = G diag(rate_walk^2 dt) G^T + angle random walk + the discrete kinematics' own
+     * error: independent, euler_rate_rel of the variance of each angle's increment and of
+     * each Euler rate (docs/derivation.md, "Conditioning") */
+    att_gen_noise_jacobian(&tn, g);
+    {
+        const ekf_scalar_t q = ekf_mul(ekf_sq(s->rate_walk), dt), var[3] = {q, q, q};
+        att_cov_add_rate_noise(&v->cov, g, var);
+    }
+    att_cov_add_diag(&v->cov, ATT_PHI, 3, ekf_mul(ekf_sq(s->angle_walk), dt));
+    for (i = 0; i < 3; ++i) {
+        att_cov_add_var(&v->cov, ATT_PHI + i, ekf_mul(s->euler_rate_rel, inc_var[i]));
+    }
+    att_cov_scale_diag(&v->cov, ATT_PHID, 3, s->euler_rate_rel);
+
+    for (i = 0; i < ATT_N; ++i) {
+        v->x[i] = xn[i];
+    }
+    v->last_dt = dt;
+    if (s->accel_lpf_tau > EKF_C(0)) {
+        accel_lp_turn(v, dt);
+    }
+    v->flags &= ~ATT_FLAG_REMAPPED;
+    if (att_normalise(v)) {
+        v->flags |= ATT_FLAG_REMAPPED;
+        ekf_count(&v->diag.remaps);
+    }
+    att_update_gimbal_flag(v, s);
+    limit_variances(v, s);
+    if (att_cov_limit_variance(&v->cov, ATT_PSI, s->heading_var_max) ||
+        !(att_cov_var(&v->cov, ATT_PSI) < s->heading_var_max)) {
+        v->flags |= ATT_FLAG_HEADING_LIMITED;
+    } else {
+        v->flags &= ~ATT_FLAG_HEADING_LIMITED;
+    }
+    /* time bookkeeping for the gate timeouts */
+    for (i = 0; i < 3; ++i) {
+        if (v->gated_time[i] > EKF_C(0)) {
+            v->gated_time[i] = ekf_add(v->gated_time[i], dt);
+        }
+    }
+    return EKF_OK;
+}

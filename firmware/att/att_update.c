@@ -1,0 +1,352 @@
+/*
+ * att_update.c - the measurement stages: gyroscope (and a saturated gyroscope),
+ * accelerometer, magnetometer (docs/derivation.md, "Measurement models", "Innovation
+ * gate", "Gate timeouts").
+ */
+#include "att_gen.h"
+#include "att_internal.h"
+#include "att_model.h"
+#include "ekf_util.h"
+
+/* Trigonometry for the measurement functions: the true (unclamped) pitch. They use only
+ * sin and cos, never sec(theta), which is left at zero. */
+static void meas_trig(const att_vars_t *v, att_trig_t *t)
+{
+    t->sphi = ekf_sin(v->x[ATT_PHI]);
+    t->cphi = ekf_cos(v->x[ATT_PHI]);
+    t->sth = ekf_sin(v->x[ATT_THETA]);
+    t->cth = ekf_cos(v->x[ATT_THETA]);
+    t->secth = EKF_C(0);
+}
+
+/* 1 if an innovation would fail the gate of gate sigmas (a bypassed gate still judges the
+ * innovations, so that the bypass lasts until they are consistent again). */
+static int fails_gate(const ekf_innov_t *info, ekf_scalar_t gate)
+{
+    return gate > EKF_C(0) && ekf_sq(info->innovation) > ekf_mul(ekf_sq(gate), info->variance);
+}
+
+/* Gate of the gyroscope or the accelerometer: its setting, or 0 (off) once it has gated
+ * continuously for longer than gate_timeout. A filter that has drifted away from a sensor
+ * would otherwise reject it forever. */
+static ekf_scalar_t gate_for(att_vars_t *v, const att_settings_t *s, int sensor, ekf_scalar_t gate)
+{
+    const ekf_scalar_t timeout = s->gate_timeout;
+    if (gate > EKF_C(0) && timeout > EKF_C(0) && v->gated_time[sensor] > timeout) {
+        v->flags |= ATT_FLAG_GATE_BYPASS;
+        return EKF_C(0);
+    }
+    return gate;
+}
+
+/* Records whether a sensor's update gated (starts the gate clock) or passed (stops it). */
+static void gate_result(att_vars_t *v, const att_settings_t *s, int sensor, int gated)
+{
+    if (gated) {
+        if (!(v->gated_time[sensor] > EKF_C(0))) {
+            v->gated_time[sensor] = EKF_SCALAR_EPS; /* running; the prediction adds dt */
+        }
+    } else {
+        v->gated_time[sensor] = EKF_C(0);
+        if (!(v->gated_time[ATT_SENSOR_GYRO] > s->gate_timeout) &&
+            !(v->gated_time[ATT_SENSOR_ACCEL] > s->gate_timeout)) {
+            v->flags &= ~ATT_FLAG_GATE_BYPASS;
+        }
+    }
+}
+
+/* ---- gyroscope ---- */
+
+/* A clamped gyro reading (ATT_GYRO_SATURATED): the rate is at least its largest component
+ * in magnitude, by an unknown amount. Not fused; each body-rate variance is raised to at
+ * least that square (P += G diag(extra) G^T, positive semi-definite, so P stays positive
+ * definite), docs/derivation.md "Gyroscope saturation". Without this the rates would only
+ * random-walk at rate_walk while a tumble beyond full scale turns the vehicle, and the
+ * attitude would come out of the tumble wrong with a small covariance: confidently wrong,
+ * and gated by the sensors that could correct it. */
+ekf_status_t att_stage_gyro_saturated(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t gyro[3])
+{
+    ekf_scalar_t g[9], extra[3], var;
+    att_trig_t t;
+    int i;
+
+    var = ekf_sq(ekf_max(ekf_max(ekf_abs(gyro[0]), ekf_abs(gyro[1])), ekf_abs(gyro[2])));
+    for (i = 0; i < 3; ++i) {
+        extra[i] = ekf_max(ekf_sub(var, att_cov_var(&v->cov, ATT_P + i)), EKF_C(0));
+    }
+    (void)att_trig(v->x[ATT_PHI], v->x[ATT_THETA], s->gimbal_limit, &t);
+    att_gen_noise_jacobian(&t, g);
+    att_cov_add_rate_noise(&v->cov, g, extra);
+    ekf_count(&v->diag.gyro_saturated);
+    return EKF_SKIPPED;
+}
+
+ekf_status_t att_stage_gyro(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t gyro[3])
+{
+    ekf_scalar_t gate, r_var;
+    ekf_status_t st;
+    ekf_innov_t info;
+    int i, gated = 0, bypass_failed = 0;
+
+    gate = gate_for(v, s, ATT_SENSOR_GYRO, s->gyro_gate);
+    r_var = ekf_sq(s->gyro_noise);
+    for (i = 0; i < 3; ++i) {
+        /* the rates net of the learned offset (att_rest.h) */
+        const ekf_scalar_t nu = ekf_sub(ekf_sub(gyro[i], v->rest.bias[i]), v->x[ATT_P + i]);
+        st = att_cov_update_unit(&v->cov, v->x, ATT_P + i, nu, r_var, gate, s->var_floor, &info);
+        v->diag.gyro_ratio[i] = info.test_ratio;
+        if (st == EKF_GATED) {
+            gated = 1;
+            ekf_count(&v->diag.gyro_gated);
+        } else if (st != EKF_OK) {
+            return st; /* EKF_ERR_NUMERIC: the call discards its working copy */
+        } else {
+            ekf_count(&v->diag.gyro_fused);
+            bypass_failed |= fails_gate(&info, s->gyro_gate);
+        }
+    }
+    /* the rates correlate with the angles: the update may have moved them too */
+    if (att_normalise(v)) {
+        ekf_count(&v->diag.remaps);
+    }
+    att_update_gimbal_flag(v, s);
+    gate_result(v, s, ATT_SENSOR_GYRO, gated || bypass_failed);
+    if (gated) {
+        v->flags |= ATT_FLAG_GYRO_GATED;
+        return EKF_GATED;
+    }
+    v->flags &= ~ATT_FLAG_GYRO_GATED;
+    return EKF_OK;
+}
+
+/* ---- accelerometer ---- */
+
+/* Blends a sample into the low-passed specific force (see accel_lp_turn, att_predict.c). */
+static void accel_lp_blend(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t accel[3])
+{
+    const ekf_scalar_t k = ekf_div(v->last_dt, ekf_add(s->accel_lpf_tau, v->last_dt));
+    int i;
+    for (i = 0; i < 3; ++i) {
+        v->accel_lp[i] = v->accel_lp_valid ? ekf_mac(v->accel_lp[i], k, ekf_sub(accel[i], v->accel_lp[i])) : accel[i];
+    }
+    v->accel_lp_valid = 1u;
+}
+
+ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t accel[3])
+{
+    ekf_scalar_t norm, a_norm, err, r_var, gate, phi0, theta0;
+    ekf_scalar_t a[3], h[3], hj[6];
+    att_trig_t t;
+    ekf_status_t st;
+    ekf_innov_t info;
+    int i, gated = 0, bypass_failed = 0, consistent = 1;
+
+    v->tilt_ok = 0u; /* until this update shows otherwise */
+    norm = att_norm3(accel);
+    err = ekf_abs(ekf_sub(norm, s->gravity));
+    v->diag.accel_norm_error = err;
+    v->flags &= ~(ATT_FLAG_ACCEL_DEWEIGHTED | ATT_FLAG_ACCEL_REJECTED | ATT_FLAG_ACCEL_GATED);
+    /* a: what is fused, the low-passed force when the low-pass is on (every sample enters
+     * it, fused or not), else the sample */
+    if (s->accel_lpf_tau > EKF_C(0)) {
+        accel_lp_blend(v, s, accel);
+        for (i = 0; i < 3; ++i) {
+            a[i] = v->accel_lp[i];
+        }
+        a_norm = att_norm3(a);
+    } else {
+        for (i = 0; i < 3; ++i) {
+            a[i] = accel[i];
+        }
+        a_norm = norm;
+    }
+    if (s->accel_adapt_tau > EKF_C(0)) {
+        /* running mean over accel_adapt_tau of the squared norm error of a: how much linear
+         * acceleration is left in it lately, whatever this one sample's norm happens to be */
+        const ekf_scalar_t k = ekf_div(v->last_dt, ekf_add(s->accel_adapt_tau, v->last_dt));
+        const ekf_scalar_t e = ekf_sub(a_norm, s->gravity);
+        v->accel_dev_var = ekf_mac(v->accel_dev_var, k, ekf_sub(ekf_sq(e), v->accel_dev_var));
+    }
+    if (err > s->accel_reject || !(norm > EKF_C(0))) {
+        /* far from 1 g: the direction is dominated by linear acceleration */
+        v->flags |= ATT_FLAG_ACCEL_REJECTED;
+        ekf_count(&v->diag.accel_skipped);
+        return EKF_SKIPPED;
+    }
+    /* unit-vector measurement; variance (accel_noise^2 + recent linear-acceleration
+     * variance) / g^2, optionally inflated by 1 + (err / accel_band)^2 for this sample
+     * (docs/derivation.md, "Linear acceleration") */
+    r_var = ekf_div(ekf_add(ekf_sq(s->accel_noise), v->accel_dev_var), ekf_sq(s->gravity));
+    if (v->accel_dev_var > ekf_sq(s->accel_noise)) {
+        v->flags |= ATT_FLAG_ACCEL_DEWEIGHTED; /* the noise variance at least doubled */
+    }
+    if (s->accel_band > EKF_C(0)) {
+        const ekf_scalar_t k = ekf_div(err, s->accel_band);
+        r_var = ekf_mul(r_var, ekf_add(EKF_C(1), ekf_sq(k)));
+        if (k > EKF_C(1)) {
+            v->flags |= ATT_FLAG_ACCEL_DEWEIGHTED;
+        }
+    }
+    gate = gate_for(v, s, ATT_SENSOR_ACCEL, s->accel_gate);
+    if (!(a_norm > EKF_C(0))) {
+        /* the shaking averaged to no force at all: no direction to fuse (the raw sample's
+         * zero norm was rejected above) */
+        v->flags |= ATT_FLAG_ACCEL_REJECTED;
+        ekf_count(&v->diag.accel_skipped);
+        return EKF_SKIPPED;
+    }
+    norm = a_norm;
+
+    /* h and H at the prior; the three components are fused sequentially with innovations
+     * relinearised about the prior, which equals the batch update of the 3-vector
+     * (docs/derivation.md, "Sequential vector updates") */
+    meas_trig(v, &t);
+    att_gen_accel_h(&t, h);
+    att_gen_accel_jacobian(&t, hj);
+    phi0 = v->x[ATT_PHI];
+    theta0 = v->x[ATT_THETA];
+    for (i = 0; i < 3; ++i) {
+        ekf_scalar_t nu = ekf_sub(ekf_div(a[i], norm), h[i]);
+        nu = ekf_sub(nu, ekf_mul(hj[2 * i], ekf_sub(v->x[ATT_PHI], phi0)));
+        nu = ekf_sub(nu, ekf_mul(hj[2 * i + 1], ekf_sub(v->x[ATT_THETA], theta0)));
+        st = att_cov_update_tilt(&v->cov, v->x, hj[2 * i], hj[2 * i + 1], nu, r_var, gate, s->var_floor, &info);
+        v->diag.accel_ratio[i] = info.test_ratio;
+        bypass_failed |= (st == EKF_OK) && fails_gate(&info, s->accel_gate);
+        consistent = consistent && (st == EKF_OK) && !fails_gate(&info, EKF_C(3));
+        if (st == EKF_GATED) {
+            gated = 1;
+            ekf_count(&v->diag.accel_gated);
+        } else if (st != EKF_OK) {
+            return st; /* EKF_ERR_NUMERIC: the call discards its working copy */
+        } else {
+            ekf_count(&v->diag.accel_fused);
+        }
+    }
+    if (att_normalise(v)) {
+        ekf_count(&v->diag.remaps);
+    }
+    att_update_gimbal_flag(v, s);
+    gate_result(v, s, ATT_SENSOR_ACCEL, gated || bypass_failed);
+    v->tilt_ok = (uint8_t)(consistent && (v->flags & ATT_FLAG_ACCEL_DEWEIGHTED) == 0u);
+    if (gated) {
+        v->flags |= ATT_FLAG_ACCEL_GATED;
+        return EKF_GATED;
+    }
+    return EKF_OK;
+}
+
+/* ---- magnetometer ---- */
+
+/* The magnetic reference (norm in mag units, dip in rad) and tan^2(dip), which scales the
+ * tilt error into the heading ("Magnetometer" in docs/derivation.md): computed here, once
+ * per reference, not per sample (|dip| is capped at 84 deg, cos >= 0.1). */
+void att_set_mag_reference(att_vars_t *v, ekf_scalar_t norm, ekf_scalar_t dip)
+{
+    v->mag_ref_norm = norm;
+    v->mag_ref_dip = dip;
+    v->mag_tan2_dip = ekf_sq(ekf_div(ekf_sin(dip), ekf_max(ekf_cos(dip), EKF_C(0.1))));
+}
+
+ekf_scalar_t att_mag_heading(const att_settings_t *s, const ekf_scalar_t lev[3])
+{
+    return ekf_wrap_pi(ekf_sub(ekf_atan2(lev[0], lev[1]), s->mag_declination));
+}
+
+ekf_scalar_t att_mag_dip(const ekf_scalar_t lev[3])
+{
+    return ekf_atan2(ekf_neg(lev[2]), ekf_sqrt(ekf_add(ekf_sq(lev[0]), ekf_sq(lev[1]))));
+}
+
+/* Heading row and column reset: psi <- heading, Var(psi) <- var, no correlation. Keeps P
+ * positive semi-definite (a principal block plus a positive diagonal entry). */
+static void reset_heading(att_vars_t *v, const att_settings_t *s, ekf_scalar_t heading, ekf_scalar_t var)
+{
+    att_cov_reset_state(&v->cov, ATT_PSI, ekf_max(var, s->var_floor));
+    v->x[ATT_PSI] = heading;
+}
+
+ekf_status_t att_stage_mag(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t mag[3])
+{
+    ekf_scalar_t lev[3], norm, heading, nu, r_var;
+    att_trig_t t;
+    ekf_status_t st;
+    ekf_innov_t info;
+
+    v->flags &= ~(ATT_FLAG_MAG_DISTURBED | ATT_FLAG_HEADING_HELD | ATT_FLAG_MAG_GATED);
+    if ((v->flags & ATT_FLAG_GIMBAL_LOCK) != 0u) {
+        /* heading is ill-defined next to theta = +-90 deg: hold it */
+        v->flags |= ATT_FLAG_HEADING_HELD;
+        ekf_count(&v->diag.mag_skipped);
+        return EKF_SKIPPED;
+    }
+    norm = att_norm3(mag);
+    meas_trig(v, &t);
+    att_gen_mag_level(&t, mag, lev);
+    if (!(ekf_sqrt(ekf_add(ekf_sq(lev[0]), ekf_sq(lev[1]))) > ekf_mul(EKF_C(1e-3), norm))) {
+        /* no horizontal component (or no field at all): no heading information */
+        v->flags |= ATT_FLAG_MAG_DISTURBED;
+        ekf_count(&v->diag.mag_skipped);
+        return EKF_SKIPPED;
+    }
+    heading = att_mag_heading(s, lev);
+    if (!(v->mag_ref_norm > EKF_C(0))) {
+        /* aligned without a magnetometer: the first field sample sets the reference and
+         * the heading */
+        att_set_mag_reference(v, norm, att_mag_dip(lev));
+        reset_heading(v, s, heading, ekf_min(ekf_sq(s->init_heading_sigma), s->heading_var_max));
+        v->flags &= ~ATT_FLAG_HEADING_LIMITED;
+        ekf_count(&v->diag.mag_fused);
+        return EKF_OK;
+    }
+    v->diag.mag_norm_error = ekf_sub(ekf_div(norm, v->mag_ref_norm), EKF_C(1));
+    v->diag.mag_dip_error = ekf_sub(att_mag_dip(lev), v->mag_ref_dip);
+    if (ekf_abs(v->diag.mag_norm_error) > s->mag_norm_tol || ekf_abs(v->diag.mag_dip_error) > s->mag_dip_tol) {
+        v->flags |= ATT_FLAG_MAG_DISTURBED;
+        ekf_count(&v->diag.mag_skipped);
+        /* the reset below needs mag_reset_time of gating an undisturbed field: a body-fixed
+         * offset can pass the tests for a moment in a turn */
+        v->gated_time[ATT_SENSOR_MAG] = EKF_C(0);
+        return EKF_SKIPPED;
+    }
+    nu = ekf_wrap_pi(ekf_sub(heading, v->x[ATT_PSI]));
+    if (s->mag_reset_time > EKF_C(0) && v->gated_time[ATT_SENSOR_MAG] > s->mag_reset_time && v->tilt_ok) {
+        /* An undisturbed field (norm and dip as referenced) has disagreed with the heading
+         * beyond the gate for mag_reset_time: the heading is what is wrong (lost during
+         * gyro saturation, or tilted by sustained acceleration). Take the magnetic heading
+         * with the initial uncertainty. Only with a tilt the accelerometer confirms: the
+         * field is levelled with it, and a tilt still wrong after sustained acceleration
+         * gives a heading wrong by up to 180 deg. A magnet fixed to the sensor can pass the
+         * norm and dip tests for seconds; with these conditions no reset fires on BROAD's
+         * attached-magnet trials (docs/derivation.md, "Magnetometer"). */
+        reset_heading(v, s, heading, ekf_min(ekf_sq(s->init_heading_sigma), s->heading_var_max));
+        ekf_count(&v->diag.heading_resets);
+        ekf_count(&v->diag.mag_fused);
+        gate_result(v, s, ATT_SENSOR_MAG, 0);
+        return EKF_OK;
+    }
+    /* The heading comes from the field levelled with the estimated tilt, and a tilt error
+     * e moves it by about tan(dip) e. While linear acceleration disturbs the tilt (its
+     * running variance accel_dev_var, m/s^2 squared, is a tilt variance of
+     * accel_dev_var / g^2), the heading is trusted that much less (docs/derivation.md,
+     * "Magnetometer"). */
+    r_var = ekf_mac(ekf_sq(s->mag_heading_noise), v->mag_tan2_dip, ekf_div(v->accel_dev_var, ekf_sq(s->gravity)));
+    /* no gate bypass for the magnetometer (a magnet that passes the norm and dip tests would
+     * drag the heading): recovery is the reset above, after mag_reset_time */
+    st = att_cov_update_unit(&v->cov, v->x, ATT_PSI, nu, r_var, s->mag_gate, s->var_floor, &info);
+    v->diag.mag_ratio = info.test_ratio;
+    if (st == EKF_GATED) {
+        ekf_count(&v->diag.mag_gated);
+        gate_result(v, s, ATT_SENSOR_MAG, 1);
+        v->flags |= ATT_FLAG_MAG_GATED;
+        return EKF_GATED;
+    }
+    if (st != EKF_OK) {
+        return st; /* EKF_ERR_NUMERIC: the call discards its working copy */
+    }
+    ekf_count(&v->diag.mag_fused);
+    gate_result(v, s, ATT_SENSOR_MAG, 0);
+    if (att_normalise(v)) {
+        ekf_count(&v->diag.remaps);
+    }
+    return EKF_OK;
+}
