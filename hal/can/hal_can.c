@@ -1,7 +1,7 @@
 /*
  * hal_can.c - sample assembly and output encoding for the CAN protocol (hal_can.h).
  *
- * All bit layouts and scalings come from the cantools-generated canmsg.c (from
+ * All bit layouts and scalings come from the cantools-generated canmsg_gen.c (from
  * hal/can/attekf.dbc); this file only decides what to do with the frames.
  */
 #include "hal_can.h"
@@ -9,7 +9,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "canmsg.h"
+#include "canmsg_gen.h"
 
 enum { KIND_GYRO = 0, KIND_ACCEL = 1, KIND_MAG = 2, KIND_SYNC = 3 };
 

@@ -1,6 +1,6 @@
 /*
  * fuzz_hal_can.c - libFuzzer target: the CAN protocol receive path (hal/can/hal_can.c over
- * the cantools-generated canmsg.c) and, behind it, the estimator node (firmware/app over
+ * the cantools-generated canmsg_gen.c) and, behind it, the estimator node (firmware/app over
  * the virtual backend) fed arbitrary frames.
  *
  * The input is a program of operations: raw frames (any id, any DLC, any payload), whole

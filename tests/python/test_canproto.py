@@ -131,7 +131,7 @@ def test_check_detects_stale_generated_code(tmp_path):
     for rel in ("hal/can", "docs"):
         shutil.copytree(REPO / rel, tmp_path / rel)
     assert cp.main(["check", "--root", str(tmp_path)]) == 0
-    c = tmp_path / "hal/can/canmsg.c"
+    c = tmp_path / "hal/can/canmsg_gen.c"
     c.write_text(c.read_text().replace("0.001f", "0.002f", 1))
     assert cp.main(["check", "--root", str(tmp_path)]) == 1
     assert cp.main(["generate", "--root", str(tmp_path)]) == 0

@@ -6,7 +6,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "canmsg.h"
+#include "canmsg_gen.h"
 #include "hal.h"
 #include "hal_can.h"
 #include "unity.h"
