@@ -1,6 +1,7 @@
 /*
  * hal_can.h - the CAN protocol of hal/can/attekf.dbc on top of the cantools-generated
- * pack/unpack code (canmsg_gen.c): IMU frames -> samples, outputs -> frames.
+ * pack/unpack code (canmsg_gen.c): IMU frames -> samples (hal_can_rx.c), outputs -> frames
+ * (hal_can_output.c); the IMU frames one at a time in hal_can_input.c.
  *
  * Independent of any CAN driver: the SocketCAN backend, the virtual backend and a bare-metal
  * CAN driver all feed received frames to hal_can_rx_frame() and send what

@@ -11,7 +11,7 @@
  *     hal_virtual_end(&v);                             no more input: HAL_END when drained
  *     ... app_init(&app, ..., &hal); while (app_poll(&app, 10000) != HAL_END) {}
  *
- * Frames go through the same protocol code as on a real bus (hal_can.c), so a replay
+ * Frames go through the same protocol code as on a real bus (hal/can), so a replay
  * through this backend computes exactly what the node computes on vcan0 from the same
  * frames. Samples pushed directly skip the CAN layer (quantisation included).
  *

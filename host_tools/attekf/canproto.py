@@ -322,7 +322,7 @@ class InputSample:
 
 class InputDecoder:
     """Turns IMU input frames back into samples (a sample ends with its IMU_SYNC). For recording
-    and checking what was on the bus, not the node's robust assembly (hal/can/hal_can.c)."""
+    and checking what was on the bus, not the node's robust assembly (hal/can/hal_can_rx.c)."""
 
     def __init__(self) -> None:
         self.db = database()

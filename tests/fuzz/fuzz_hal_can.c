@@ -1,5 +1,5 @@
 /*
- * fuzz_hal_can.c - libFuzzer target: the CAN protocol receive path (hal/can/hal_can.c over
+ * fuzz_hal_can.c - libFuzzer target: the CAN protocol receive path (hal/can/hal_can_rx.c over
  * the cantools-generated canmsg_gen.c) and, behind it, the estimator node (firmware/app over
  * the virtual backend) fed arbitrary frames.
  *

@@ -1,5 +1,5 @@
 /*
- * test_hal_can.c - the CAN protocol layer (hal/can/hal_can.c): sample assembly from frames
+ * test_hal_can.c - the CAN protocol layer (hal/can/hal_can_*.c): sample assembly from frames
  * under every fault the protocol defines (duplicates, reordering, loss, wrong length,
  * unknown ids, saturation, wraps), and the output encoding round trip.
  */

@@ -1,0 +1,302 @@
+/*
+ * hal_can_rx.c - the sample assembly of the CAN protocol (hal_can.h, docs/can_protocol.md):
+ * input frames -> samples, in sequence order, with every fault counted.
+ */
+#include "hal_can_input.h"
+
+#include <string.h>
+
+/* a - b in sequence-number arithmetic (RFC 1982 style): in -32768..32767. */
+static int32_t seq_diff(uint16_t a, uint16_t b)
+{
+    int32_t d = (int32_t)(uint16_t)(a - b);
+    return (d >= 32768) ? d - 65536 : d;
+}
+
+void hal_can_rx_init(hal_can_rx_t *rx) { memset(rx, 0, sizeof(*rx)); }
+
+/* ---- history of emitted / discarded samples (duplicate vs late) ---------------------- */
+static void history_add(hal_can_rx_t *rx, uint16_t seq, uint8_t have)
+{
+    rx->hist_seq[rx->hist_pos] = seq;
+    rx->hist_have[rx->hist_pos] = have;
+    rx->hist_pos = (uint8_t)((rx->hist_pos + 1u) % HAL_CAN_HISTORY);
+    if (rx->hist_n < HAL_CAN_HISTORY) {
+        ++rx->hist_n;
+    }
+}
+
+static uint16_t history_newest(const hal_can_rx_t *rx)
+{
+    return rx->hist_seq[(rx->hist_pos + HAL_CAN_HISTORY - 1u) % HAL_CAN_HISTORY];
+}
+
+/* The have-mask of an emitted sample, or -1 if it is not remembered. */
+static int history_have(const hal_can_rx_t *rx, uint16_t seq)
+{
+    uint8_t i;
+    for (i = 0; i < rx->hist_n; ++i) {
+        const uint8_t k = (uint8_t)((rx->hist_pos + HAL_CAN_HISTORY - 1u - i) % HAL_CAN_HISTORY);
+        if (rx->hist_seq[k] == seq) {
+            return rx->hist_have[k];
+        }
+    }
+    return -1;
+}
+
+/* ---- slots ------------------------------------------------------------------------- */
+static hal_can_slot_t *find_slot(hal_can_rx_t *rx, uint16_t seq)
+{
+    int i;
+    for (i = 0; i < HAL_CAN_RX_SLOTS; ++i) {
+        if (rx->slot[i].used && rx->slot[i].s.seq == seq) {
+            return &rx->slot[i];
+        }
+    }
+    return NULL;
+}
+
+/* The used slot with the oldest sequence number (relative to the head), or NULL. */
+static hal_can_slot_t *oldest_slot(hal_can_rx_t *rx)
+{
+    hal_can_slot_t *best = NULL;
+    int32_t best_age = -1;
+    int i;
+    for (i = 0; i < HAL_CAN_RX_SLOTS; ++i) {
+        if (rx->slot[i].used) {
+            const int32_t age = seq_diff(rx->head_seq, rx->slot[i].s.seq);
+            if (age > best_age) {
+                best_age = age;
+                best = &rx->slot[i];
+            }
+        }
+    }
+    return best;
+}
+
+static int slot_complete(const hal_can_slot_t *sl)
+{
+    return (sl->have & HAL_CAN_HAVE_SYNC) != 0u &&
+           (sl->declared & (uint8_t)~sl->have & HAL_HAS_ALL) == 0u;
+}
+
+static void push_ready(hal_can_rx_t *rx, const hal_sample_t *s)
+{
+    uint8_t tail;
+    if (rx->ready_n == HAL_CAN_READY_MAX) {
+        /* Nobody popped: drop the oldest so the newest data wins. */
+        rx->ready_head = (uint8_t)((rx->ready_head + 1u) % HAL_CAN_READY_MAX);
+        --rx->ready_n;
+        hal_count(&rx->counters[HAL_CNT_DISCARDED]);
+    }
+    tail = (uint8_t)((rx->ready_head + rx->ready_n) % HAL_CAN_READY_MAX);
+    rx->ready[tail] = *s;
+    ++rx->ready_n;
+}
+
+/* Emits a slot that has its IMU_SYNC: unwraps the 32-bit time, queues the sample. */
+static void emit(hal_can_rx_t *rx, hal_can_slot_t *sl)
+{
+    uint64_t t;
+    if (!rx->have_time) {
+        t = sl->time_raw;
+    } else {
+        /* Signed 32-bit difference to the previous sample: correct across the 2^32 us
+         * wrap as long as consecutive samples are less than 35 min apart. */
+        const uint32_t u = sl->time_raw - (uint32_t)rx->last_t_us;
+        const int64_t d = (u >= 0x80000000u) ? (int64_t)u - (int64_t)0x100000000 : (int64_t)u;
+        if (d < 0 && (uint64_t)(-d) > rx->last_t_us) {
+            t = sl->time_raw; /* before the start of the unwrapped clock: take it as is */
+        } else {
+            t = (uint64_t)((int64_t)rx->last_t_us + d);
+        }
+    }
+    rx->last_t_us = t;
+    rx->have_time = 1u;
+    sl->s.t_us = t;
+    sl->s.valid = (uint8_t)(sl->have & HAL_HAS_ALL);
+    sl->s.saturated = (uint8_t)(sl->s.saturated & sl->s.valid);
+    if ((sl->declared & (uint8_t)~sl->have & HAL_HAS_ALL) != 0u) {
+        hal_count(&rx->counters[HAL_CNT_INCOMPLETE]);
+    }
+    push_ready(rx, &sl->s);
+    history_add(rx, sl->s.seq, sl->have);
+    sl->used = 0u;
+}
+
+/* Gives up a slot: emitted without its missing sensors if it has a time, else discarded. */
+static void finish(hal_can_rx_t *rx, hal_can_slot_t *sl)
+{
+    if ((sl->have & HAL_CAN_HAVE_SYNC) != 0u) {
+        emit(rx, sl);
+    } else {
+        hal_count(&rx->counters[HAL_CNT_DISCARDED]);
+        history_add(rx, sl->s.seq, sl->have);
+        sl->used = 0u;
+    }
+}
+
+/* Emits whatever can go out, in sequence order. */
+static void advance(hal_can_rx_t *rx)
+{
+    for (;;) {
+        hal_can_slot_t *old = oldest_slot(rx);
+        int i;
+        int newer_complete = 0;
+        if (old == NULL) {
+            return;
+        }
+        if (slot_complete(old)) {
+            emit(rx, old);
+            continue;
+        }
+        for (i = 0; i < HAL_CAN_RX_SLOTS; ++i) {
+            if (&rx->slot[i] != old && rx->slot[i].used && slot_complete(&rx->slot[i])) {
+                newer_complete = 1;
+            }
+        }
+        /* A newer sample is complete: the sensor frame the old one waits for would have come
+         * before it. Without its IMU_SYNC the old one may still complete (reordering). */
+        if (newer_complete && (old->have & HAL_CAN_HAVE_SYNC) != 0u) {
+            emit(rx, old);
+            continue;
+        }
+        return;
+    }
+}
+
+static void flush_slots(hal_can_rx_t *rx)
+{
+    hal_can_slot_t *old;
+    while ((old = oldest_slot(rx)) != NULL) {
+        finish(rx, old);
+    }
+}
+
+void hal_can_rx_flush(hal_can_rx_t *rx) { flush_slots(rx); }
+
+/* A slot for a sequence number not being assembled, or NULL (frame is late: counted). */
+static hal_can_slot_t *open_slot(hal_can_rx_t *rx, uint16_t seq)
+{
+    int i;
+    for (;;) {
+        hal_can_slot_t *old;
+        for (i = 0; i < HAL_CAN_RX_SLOTS; ++i) {
+            if (!rx->slot[i].used) {
+                hal_can_slot_t *sl = &rx->slot[i];
+                memset(sl, 0, sizeof(*sl));
+                sl->used = 1u;
+                sl->s.seq = seq;
+                if (!rx->have_head || seq_diff(seq, rx->head_seq) > 0) {
+                    rx->head_seq = seq;
+                    rx->have_head = 1u;
+                }
+                return sl;
+            }
+        }
+        old = oldest_slot(rx);
+        if (seq_diff(seq, old->s.seq) < 0) {
+            hal_count(&rx->counters[HAL_CNT_LATE]); /* older than everything pending */
+            return NULL;
+        }
+        finish(rx, old);
+        advance(rx);
+    }
+}
+
+static void add_to_slot(hal_can_slot_t *sl, int kind, const hal_can_input_t *d, uint64_t rx_us)
+{
+    int i;
+    float *dst = NULL;
+    if (kind == HAL_CAN_KIND_SYNC) {
+        sl->time_raw = d->sync.time_us;
+        sl->declared = (uint8_t)((d->sync.has_gyro ? HAL_HAS_GYRO : 0u) |
+                                 (d->sync.has_accel ? HAL_HAS_ACCEL : 0u) |
+                                 (d->sync.has_mag ? HAL_HAS_MAG : 0u));
+        sl->s.saturated |= (uint8_t)((d->sync.sat_gyro ? HAL_HAS_GYRO : 0u) |
+                                     (d->sync.sat_accel ? HAL_HAS_ACCEL : 0u) |
+                                     (d->sync.sat_mag ? HAL_HAS_MAG : 0u));
+        sl->have |= HAL_CAN_HAVE_SYNC;
+    } else {
+        const uint8_t bit = (uint8_t)(1u << kind);
+        dst = (kind == HAL_CAN_KIND_GYRO) ? sl->s.gyro : (kind == HAL_CAN_KIND_ACCEL) ? sl->s.accel : sl->s.mag;
+        for (i = 0; i < 3; ++i) {
+            dst[i] = d->v[i];
+        }
+        if (d->saturated) {
+            sl->s.saturated |= bit;
+        }
+        sl->have |= bit;
+    }
+    /* The sample is available when its last frame arrives. */
+    if (rx_us > sl->s.rx_us) {
+        sl->s.rx_us = rx_us;
+    }
+}
+
+void hal_can_rx_frame(hal_can_rx_t *rx, const hal_can_frame_t *frame)
+{
+    hal_can_input_t d;
+    hal_can_slot_t *sl;
+    uint8_t bit;
+    int kind;
+
+    hal_count(&rx->counters[HAL_CNT_RX_FRAMES]);
+    kind = hal_can_input_kind(frame->id);
+    if (kind < 0) {
+        hal_count(&rx->counters[HAL_CNT_UNKNOWN_ID]);
+        return;
+    }
+    if (frame->dlc != 8u || !hal_can_decode_input(kind, frame->data, &d)) {
+        hal_count(&rx->counters[HAL_CNT_BAD_DLC]);
+        return;
+    }
+    bit = (uint8_t)((kind == HAL_CAN_KIND_SYNC) ? HAL_CAN_HAVE_SYNC : (1u << kind)); /* one cast: gcc -fsanitize */
+
+    sl = find_slot(rx, d.seq);
+    if (sl == NULL) {
+        if (rx->hist_n > 0u) {
+            const int32_t dh = seq_diff(d.seq, history_newest(rx));
+            if (dh <= 0 && dh >= -HAL_CAN_LATE_WINDOW) {
+                const int have = history_have(rx, d.seq);
+                hal_count(&rx->counters[(have >= 0 && ((unsigned)have & bit) != 0u) ? HAL_CNT_DUPLICATE
+                                                                                     : HAL_CNT_LATE]);
+                return;
+            }
+        }
+        if (rx->have_head && seq_diff(d.seq, rx->head_seq) < -HAL_CAN_LATE_WINDOW) {
+            /* Far behind everything: the sender restarted its counter. Start over. */
+            flush_slots(rx);
+            rx->hist_n = 0u;
+            rx->have_head = 0u;
+        }
+        sl = open_slot(rx, d.seq);
+        if (sl == NULL) {
+            return;
+        }
+    } else if ((sl->have & bit) != 0u) {
+        hal_count(&rx->counters[HAL_CNT_DUPLICATE]);
+        return;
+    }
+    add_to_slot(sl, kind, &d, frame->t_us);
+    advance(rx);
+}
+
+int hal_can_rx_pop(hal_can_rx_t *rx, hal_sample_t *out)
+{
+    if (rx->ready_n == 0u) {
+        return 0;
+    }
+    *out = rx->ready[rx->ready_head];
+    rx->ready_head = (uint8_t)((rx->ready_head + 1u) % HAL_CAN_READY_MAX);
+    --rx->ready_n;
+    return 1;
+}
+
+void hal_can_rx_add_counters(const hal_can_rx_t *rx, uint32_t counters[HAL_CNT_COUNT])
+{
+    int i;
+    for (i = HAL_CNT_LINK_FIRST; i < HAL_CNT_LINK_END; ++i) {
+        hal_count_n(&counters[i], rx->counters[i]);
+    }
+}
