@@ -6,6 +6,11 @@
 #include <math.h>
 #include <string.h>
 
+double mt_wrap_pi(double a)
+{
+    return a - 2.0 * MT_PI * floor((a + MT_PI) / (2.0 * MT_PI));
+}
+
 void mt_matmul(const double *A, const double *B, double *C, int n, int m, int p)
 {
     int i, j, k;

@@ -10,6 +10,10 @@
 #include "ekf_scalar.h"
 
 #define MT_MAX 32
+#define MT_PI 3.14159265358979323846
+
+/* An angle wrapped into [-pi, pi), rad. */
+double mt_wrap_pi(double a);
 
 /* C = A B, A n x m, B m x p (row-major). C may not alias A or B. */
 void mt_matmul(const double *A, const double *B, double *C, int n, int m, int p);

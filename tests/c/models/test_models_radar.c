@@ -18,12 +18,7 @@
 void setUp(void) {}
 void tearDown(void) {}
 
-static const double PI = 3.14159265358979323846;
-
-static double wrap(double a)
-{
-    return a - 2.0 * PI * floor((a + PI) / (2.0 * PI));
-}
+static const double PI = MT_PI;
 
 static void test_measurement_values(void)
 {
@@ -79,7 +74,7 @@ static void test_jacobian_finite_differences(void)
                 for (m = 0; m < 3; ++m) {
                     double diff = (double)hp[m] - (double)hm[m];
                     if (m == RADAR_PHI) {
-                        diff = wrap(diff);
+                        diff = mt_wrap_pi(diff);
                     }
                     d[pass][m] = diff / ((double)xp[j] - (double)xm[j]);
                 }
@@ -137,7 +132,7 @@ static void test_bearing_wrap(void)
      * by about d^2 / 2r < 0.01 m (the unwrapped innovation would have moved it by metres) */
     {
         const double bearing = atan2((double)f.x[RADAR_PY], (double)f.x[RADAR_PX]);
-        const double moved = wrap(bearing - (PI - 0.01));
+        const double moved = mt_wrap_pi(bearing - (PI - 0.01));
         TEST_ASSERT_TRUE_MESSAGE(moved > 0.0 && moved < 0.03, "bearing did not move by the wrapped angle");
         TEST_ASSERT_FLOAT_WITHIN(1e-2, r, hypot((double)f.x[RADAR_PX], (double)f.x[RADAR_PY]));
     }
@@ -217,12 +212,12 @@ static void test_sequential_equals_batch(void)
         TEST_ASSERT_EQUAL_INT(EKF_OK, radar_jacobian(f.x, f.settings.min_range, Hs));
         mt_to_double(Hs, H, 12);
         z[0] = (ekf_scalar_t)((double)h[0] + 0.3 * ts_gauss(&rng));
-        z[1] = (ekf_scalar_t)wrap((double)h[1] + 0.03 * ts_gauss(&rng));
+        z[1] = (ekf_scalar_t)mt_wrap_pi((double)h[1] + 0.03 * ts_gauss(&rng));
         z[2] = (ekf_scalar_t)((double)h[2] + 0.3 * ts_gauss(&rng));
         for (i = 0; i < 3; ++i) {
             nu[i] = (double)z[i] - (double)h[i];
         }
-        nu[1] = wrap(nu[1]);
+        nu[1] = mt_wrap_pi(nu[1]);
         r[0] = (double)f.settings.rho_var;
         r[1] = (double)f.settings.phi_var;
         r[2] = (double)f.settings.rhodot_var;
@@ -400,7 +395,7 @@ static scenario_result_t run_scenario(int use_lidar)
             rho = hypot(truth[0], truth[1]);
             phi = atan2(truth[1], truth[0]);
             z[RADAR_RHO] = (ekf_scalar_t)(rho + sqrt((double)s.rho_var) * ts_gauss(&rng));
-            z[RADAR_PHI] = (ekf_scalar_t)wrap(phi + sqrt((double)s.phi_var) * ts_gauss(&rng));
+            z[RADAR_PHI] = (ekf_scalar_t)mt_wrap_pi(phi + sqrt((double)s.phi_var) * ts_gauss(&rng));
             z[RADAR_RHODOT] = (ekf_scalar_t)((truth[0] * truth[2] + truth[1] * truth[3]) / rho +
                                              sqrt((double)s.rhodot_var) * ts_gauss(&rng));
             zl[0] = (ekf_scalar_t)(truth[0] + sqrt((double)s.lidar_var) * ts_gauss(&rng));
