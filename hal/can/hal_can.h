@@ -18,8 +18,13 @@
  *     when a frame needs a slot and none is free, the oldest sample is emitted the same way,
  *     or, without its IMU_SYNC (no time), discarded (HAL_CNT_DISCARDED);
  *   - a frame repeating one already received for its sample is a duplicate; a frame for a
- *     sample already emitted or discarded (within HAL_CAN_LATE_WINDOW) is late; both dropped
- *     and counted. A frame further back than the window restarts the assembly (sender reset);
+ *     sample already emitted or discarded (within HAL_CAN_SEQ_WINDOW) is late; both dropped
+ *     and counted;
+ *   - a frame more than HAL_CAN_SEQ_WINDOW away from the newest sample (either way) is held
+ *     aside, the samples being assembled untouched: the next frame of the stream drops it
+ *     as late (a stale frame). A frame of a newer sample continuing the held one (within the
+ *     window) before that means the sender restarted: the samples being assembled are
+ *     emitted or discarded as above and the assembly goes on from the held sample;
  *   - wrong length: rejected (HAL_CNT_BAD_DLC); other ids: ignored (HAL_CNT_UNKNOWN_ID).
  */
 #ifndef HAL_CAN_H
@@ -35,7 +40,8 @@ extern "C" {
 #endif
 
 #define HAL_CAN_RX_SLOTS 2        /* samples assembled concurrently */
-#define HAL_CAN_LATE_WINDOW 64    /* sequence numbers back that count as late, not a restart */
+#define HAL_CAN_SEQ_WINDOW 64     /* sequence numbers either side of the newest sample that
+                                     belong to the stream (late, duplicate or new samples) */
 #define HAL_CAN_READY_MAX 4       /* completed samples waiting for hal_can_rx_pop */
 #define HAL_CAN_HISTORY 4         /* emitted samples remembered to tell duplicates from late */
 #define HAL_CAN_MAX_OUT_FRAMES 5  /* frames per output (hal_can_encode_output) */
@@ -74,6 +80,8 @@ typedef struct {
     uint16_t head_seq;      /* newest sequence number seen */
     uint8_t have_time;
     uint64_t last_t_us;     /* unwrapped time of the last emitted sample */
+    hal_can_slot_t held;    /* a sample outside the window (held.used): stale or a restart */
+    uint8_t held_frames;    /* frames in held (late if the stream goes on) */
     uint32_t counters[HAL_CNT_COUNT]; /* RX_FRAMES, UNKNOWN_ID, BAD_DLC, DUPLICATE, LATE,
                                          INCOMPLETE, DISCARDED */
 } hal_can_rx_t;
@@ -88,7 +96,8 @@ void hal_can_rx_frame(hal_can_rx_t *rx, const hal_can_frame_t *frame);
 /* Takes the oldest completed sample: 1 if *out was filled, 0 if none. */
 int hal_can_rx_pop(hal_can_rx_t *rx, hal_sample_t *out);
 
-/* End of input: emits (or discards) every sample still being assembled. */
+/* End of input: emits (or discards) every sample still being assembled; held frames are
+ * late. */
 void hal_can_rx_flush(hal_can_rx_t *rx);
 
 /* Adds the assembler's counters into counters[] (link-level entries only). */

@@ -173,8 +173,6 @@ static void flush_slots(hal_can_rx_t *rx)
     }
 }
 
-void hal_can_rx_flush(hal_can_rx_t *rx) { flush_slots(rx); }
-
 /* A slot for a sequence number not being assembled, or NULL (frame is late: counted). */
 static hal_can_slot_t *open_slot(hal_can_rx_t *rx, uint16_t seq)
 {
@@ -234,6 +232,88 @@ static void add_to_slot(hal_can_slot_t *sl, int kind, const hal_can_input_t *d, 
     }
 }
 
+/* ---- frames outside the stream's window ------------------------------------------- */
+/* 1 if seq is of a sample emitted or discarded not long ago (a duplicate or late frame). */
+static int recent(const hal_can_rx_t *rx, uint16_t seq)
+{
+    int32_t dh;
+    if (rx->hist_n == 0u) {
+        return 0;
+    }
+    dh = seq_diff(seq, history_newest(rx));
+    return dh <= 0 && dh >= -HAL_CAN_SEQ_WINDOW;
+}
+
+/* 1 if seq is more than HAL_CAN_SEQ_WINDOW away from the newest sample, either way. */
+static int off_stream(const hal_can_rx_t *rx, uint16_t seq)
+{
+    int32_t d;
+    if (!rx->have_head) {
+        return 0;
+    }
+    d = seq_diff(seq, rx->head_seq);
+    return d < -HAL_CAN_SEQ_WINDOW || d > HAL_CAN_SEQ_WINDOW;
+}
+
+/* The stream went on: the held frames were stale (or stray), each one late. */
+static void drop_held(hal_can_rx_t *rx)
+{
+    hal_count_n(&rx->counters[HAL_CNT_LATE], rx->held_frames);
+    rx->held.used = 0u;
+    rx->held_frames = 0u;
+}
+
+/* An off-stream frame: held with the frames of its sample. Returns 1 if it continues the
+ * held sample with a newer sequence number (within the window): the sender restarted. */
+static int hold(hal_can_rx_t *rx, int kind, uint8_t bit, const hal_can_input_t *d, uint64_t rx_us)
+{
+    hal_can_slot_t *h = &rx->held;
+    if (h->used) {
+        const int32_t dc = seq_diff(d->seq, h->s.seq);
+        if (dc > 0 && dc <= HAL_CAN_SEQ_WINDOW) {
+            return 1;
+        }
+        if (dc == 0) {
+            if ((h->have & bit) != 0u) {
+                hal_count(&rx->counters[HAL_CNT_DUPLICATE]);
+            } else {
+                add_to_slot(h, kind, d, rx_us);
+                ++rx->held_frames;
+            }
+            return 0;
+        }
+        drop_held(rx); /* a stray frame of its own */
+    }
+    memset(h, 0, sizeof(*h));
+    h->used = 1u;
+    h->s.seq = d->seq;
+    add_to_slot(h, kind, d, rx_us);
+    rx->held_frames = 1u;
+    return 0;
+}
+
+/* The sender restarted: the old stream's samples are given up (emitted without what is
+ * missing, or discarded) and the held sample starts the new one. */
+static void restart_with_held(hal_can_rx_t *rx)
+{
+    flush_slots(rx);
+    rx->hist_n = 0u;
+    rx->slot[0] = rx->held;
+    rx->head_seq = rx->held.s.seq;
+    rx->have_head = 1u;
+    rx->held.used = 0u;
+    rx->held_frames = 0u;
+    advance(rx);
+}
+
+void hal_can_rx_flush(hal_can_rx_t *rx)
+{
+    if (rx->held.used) {
+        drop_held(rx); /* one sample of a sequence of its own is no stream */
+    }
+    flush_slots(rx);
+}
+
 void hal_can_rx_frame(hal_can_rx_t *rx, const hal_can_frame_t *frame)
 {
     hal_can_input_t d;
@@ -254,21 +334,22 @@ void hal_can_rx_frame(hal_can_rx_t *rx, const hal_can_frame_t *frame)
     bit = (uint8_t)((kind == HAL_CAN_KIND_SYNC) ? HAL_CAN_HAVE_SYNC : (1u << kind)); /* one cast: gcc -fsanitize */
 
     sl = find_slot(rx, d.seq);
-    if (sl == NULL) {
-        if (rx->hist_n > 0u) {
-            const int32_t dh = seq_diff(d.seq, history_newest(rx));
-            if (dh <= 0 && dh >= -HAL_CAN_LATE_WINDOW) {
-                const int have = history_have(rx, d.seq);
-                hal_count(&rx->counters[(have >= 0 && ((unsigned)have & bit) != 0u) ? HAL_CNT_DUPLICATE
-                                                                                     : HAL_CNT_LATE]);
-                return;
-            }
+    if (sl == NULL && !recent(rx, d.seq) && off_stream(rx, d.seq)) {
+        /* A stale frame or the start of a restarted sender: only a second sample continuing
+         * it tells, so it touches nothing being assembled until then. */
+        if (!hold(rx, kind, bit, &d, frame->t_us)) {
+            return;
         }
-        if (rx->have_head && seq_diff(d.seq, rx->head_seq) < -HAL_CAN_LATE_WINDOW) {
-            /* Far behind everything: the sender restarted its counter. Start over. */
-            flush_slots(rx);
-            rx->hist_n = 0u;
-            rx->have_head = 0u;
+        restart_with_held(rx);
+    } else if (rx->held.used) {
+        drop_held(rx);
+    }
+    if (sl == NULL) {
+        if (recent(rx, d.seq)) {
+            const int have = history_have(rx, d.seq);
+            hal_count(&rx->counters[(have >= 0 && ((unsigned)have & bit) != 0u) ? HAL_CNT_DUPLICATE
+                                                                                 : HAL_CNT_LATE]);
+            return;
         }
         sl = open_slot(rx, d.seq);
         if (sl == NULL) {

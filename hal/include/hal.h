@@ -83,8 +83,9 @@ typedef enum {
     HAL_CNT_UNKNOWN_ID,      /* frames with an id that is not an IMU input: ignored */
     HAL_CNT_BAD_DLC,         /* input frames of the wrong length: rejected */
     HAL_CNT_DUPLICATE,       /* frames already received for their sample: dropped */
-    HAL_CNT_LATE,            /* frames for a sample already completed (out of order), and
-                                samples older than the stream's last one: dropped */
+    HAL_CNT_LATE,            /* frames for a sample already completed (out of order) or far
+                                outside the stream's sequence window (stale), and samples
+                                older than the stream's last one: dropped */
     HAL_CNT_INCOMPLETE,      /* samples completed with a declared sensor frame missing */
     HAL_CNT_DISCARDED,       /* samples given up because their time (sync) frame never came */
     HAL_CNT_RX_OVERFLOW,     /* frames lost before reaching us (kernel/driver queue overflow) */

@@ -104,6 +104,8 @@ static void check_rx(world_t *w)
         used += rx->slot[i].used ? 1 : 0;
     }
     FZ_CHECK(used <= HAL_CAN_RX_SLOTS, "slots");
+    FZ_CHECK(rx->held_frames <= HAL_CAN_SAMPLE_FRAMES && (rx->held.used != 0u) == (rx->held_frames > 0u),
+             "held %u frames, used %u", (unsigned)rx->held_frames, (unsigned)rx->held.used);
 }
 
 static void pop_all(world_t *w)

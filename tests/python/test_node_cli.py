@@ -126,15 +126,27 @@ def test_replay_logs_events_at_info(replayed):
     assert "[info] started" in stderr and "[info] aligned" in stderr and "counters:" in stderr
 
 
-@pytest.mark.parametrize("offset", [0, 2])  # between two samples; inside one (after 2 of its frames)
-def test_one_stale_imu_sync_is_late_not_a_restart(node, tmp_path, offset):
-    """One 3-s-old IMU_SYNC line inserted into a replay log: counted late and dropped; no
-    resync, no re-alignment, no sample missing (docs/can_protocol.md, "Node behaviour")."""
-    rec = simulate(SimConfig(duration_s=10.0, rate_hz=100.0, seed=4, initial_rest_s=1.0))
-    write_recording_csv(str(tmp_path / "rec.csv"), rec)
-    assert attekf(["replay", "-q", str(tmp_path / "rec.csv"), "--to-log", str(tmp_path / "in.log")]) == 0
-    lines = (tmp_path / "in.log").read_text().splitlines()
+def _replay_log(tmp_path, name, **sim):
+    rec = simulate(SimConfig(**sim))
+    write_recording_csv(str(tmp_path / f"{name}.csv"), rec)
+    assert attekf(["replay", "-q", str(tmp_path / f"{name}.csv"), "--to-log", str(tmp_path / f"{name}.log")]) == 0
+    lines = (tmp_path / f"{name}.log").read_text().splitlines()
     assert len(lines) == 4 * len(rec)                   # gyro, accel, mag, sync per sample
+    return rec, lines
+
+
+@pytest.fixture(scope="module")
+def stream_10s(tmp_path_factory):
+    return _replay_log(tmp_path_factory.mktemp("stale"), "rec", duration_s=10.0, rate_hz=100.0, seed=4,
+                       initial_rest_s=1.0)
+
+
+@pytest.mark.parametrize("offset", [0, 1, 2, 3])  # between two samples; inside one (after 1..3 of its frames)
+def test_one_stale_imu_sync_is_late_not_a_restart(node, tmp_path, stream_10s, offset):
+    """One 3-s-old IMU_SYNC line inserted into a replay log, between two samples or inside one:
+    counted late and dropped by the CAN assembly; every sample of the stream arrives complete,
+    no resync, no re-alignment, nothing missing (docs/can_protocol.md, samples on the wire)."""
+    rec, lines = stream_10s
     syncs = [ln for ln in lines if ln.split()[2].startswith("103#")]
     at = 4 * 601 + offset                               # after sample 600 (t = 6 s), + offset frames
     stamp = lines[at - 1].split()[0]
@@ -143,7 +155,35 @@ def test_one_stale_imu_sync_is_late_not_a_restart(node, tmp_path, offset):
     p = run("--replay", tmp_path / "stale.log", "--stats", tmp_path / "st.json", "-l", "warn")
     assert p.returncode == 0, p.stderr
     c = json.loads((tmp_path / "st.json").read_text())["counters"]
-    assert c["late"] == 1 and "late 300" in p.stderr
+    assert c["late"] == 1 and c["rx_frames"] == len(lines) + 1
+    assert c["incomplete"] == 0 and c["discarded"] == 0 and c["duplicate"] == 0
     assert c["resync"] == 0 and c["realign"] == 0 and c["missing"] == 0 and c["gaps"] == 0
     assert c["time_errors"] == 0
-    assert c["samples"] == len(rec) + 1 and c["outputs"] == len(rec)   # 100 Hz: every sample
+    assert c["samples"] == len(rec) and c["outputs"] == len(rec)   # 100 Hz: every sample
+
+
+def test_sender_restart_is_followed(node, tmp_path, stream_10s):
+    """The sender restarts (Seq and TimeUs from 0) in the middle of a sample: the node drops
+    the cut sample, re-aligns on the new stream from its APP_RESTART_CONFIRM-th sample and
+    loses nothing else."""
+    rec, lines = stream_10s
+    rec2, lines2 = _replay_log(tmp_path, "restart", duration_s=4.0, rate_hz=100.0, seed=5, initial_rest_s=1.0)
+    cut = 4 * 700 + 2                                   # gyro and accel of sample 700, then the reset
+    t_cut = float(lines[cut - 1].split()[0].strip("()"))
+    shifted = [f"({t_cut + 0.01 + float(ln.split()[0].strip('()')):.6f}) {ln.split(' ', 1)[1]}" for ln in lines2]
+    (tmp_path / "restart_in.log").write_text("\n".join(lines[:cut] + shifted) + "\n")
+    p = run("--replay", tmp_path / "restart_in.log", "-o", tmp_path / "out.log", "--stats", tmp_path / "st.json",
+            "-l", "warn")
+    assert p.returncode == 0, p.stderr
+    c = json.loads((tmp_path / "st.json").read_text())["counters"]
+    assert c["discarded"] == 1 and c["incomplete"] == 0          # sample 700, cut by the reset
+    assert c["resync"] == 1 and c["realign"] == 0 and c["missing"] == 0
+    assert c["samples"] == 700 + len(rec2)
+    assert c["late"] == 2 and c["time_errors"] == 0              # the 2 samples before the confirmation
+    import can
+    dec = cp.OutputDecoder()
+    for m in can.LogReader(str(tmp_path / "out.log")):
+        dec.feed(m.timestamp, m.arbitration_id, bytes(m.data))
+    restarted = [r for r in dec.rows if r.flags & cp.STATUS_BITS["Restarted"]]
+    assert [r.seq for r in restarted] == [2]                     # APP_RESTART_CONFIRM - 1
+    assert dec.rows[-1].seq == len(rec2) - 1 and dec.rows[-1].flags & cp.STATUS_BITS["Aligned"]

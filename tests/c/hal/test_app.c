@@ -249,8 +249,8 @@ static void push_sample_frames(uint16_t seq, uint64_t t_us, int sync_only)
 }
 
 /* One stale IMU_SYNC (sample 99, 3 s old) between samples 399 and 400 of a 100 Hz stream:
- * the CAN assembly hands it on (it is more than 64 samples old), the application drops it
- * as late; no resync, no re-alignment, no sample missing, the filter stays aligned. */
+ * the CAN assembly drops it as late (more than 64 samples away, not continued); no resync,
+ * no re-alignment, no sample missing, the filter stays aligned. */
 static void test_one_stale_frame_is_late_not_a_restart(void)
 {
     int i;
@@ -266,13 +266,13 @@ static void test_one_stale_frame_is_late_not_a_restart(void)
     TEST_ASSERT_EQUAL_UINT32(1u, counter(HAL_CNT_LATE));
     TEST_ASSERT_EQUAL_UINT32(0u, counter(HAL_CNT_RESYNC) + counter(HAL_CNT_REALIGN) + counter(HAL_CNT_GAPS) +
                                      counter(HAL_CNT_MISSING) + counter(HAL_CNT_TIME_ERRORS));
-    TEST_ASSERT_EQUAL_UINT32(501u, counter(HAL_CNT_SAMPLES));
+    TEST_ASSERT_EQUAL_UINT32(500u, counter(HAL_CNT_SAMPLES));
     TEST_ASSERT_EQUAL_INT(500, nout); /* 100 Hz: one output per stream sample */
     for (i = 20; i < nout; ++i) {
         TEST_ASSERT_EQUAL_UINT16((uint16_t)i, outs[i].seq);
         TEST_ASSERT_TRUE((outs[i].flags & HAL_FLAG_ALIGNED) != 0u);
         TEST_ASSERT_TRUE((outs[i].flags & HAL_FLAG_RESTARTED) == 0u);
-        /* the late sample is flagged on the next output only */
+        /* the late frame is flagged on the next output only */
         TEST_ASSERT_EQUAL_INT(i == 400, (outs[i].flags & HAL_FLAG_FRAME_ERROR) != 0u);
     }
     TEST_ASSERT_EQUAL_UINT32(1u, app_last_output(&app)->counters[HAL_CNT_LATE]);

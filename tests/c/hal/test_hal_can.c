@@ -1,7 +1,8 @@
 /*
  * test_hal_can.c - the CAN protocol layer (hal/can/hal_can_*.c): sample assembly from frames
  * under every fault the protocol defines (duplicates, reordering, loss, wrong length,
- * unknown ids, saturation, wraps), and the output encoding round trip.
+ * unknown ids, saturation, wraps, stale frames, sender restarts), and the output encoding
+ * round trip.
  */
 #include <math.h>
 #include <string.h>
@@ -261,22 +262,191 @@ static void test_time_and_sequence_wrap(void)
     TEST_ASSERT_EQUAL_UINT32(0u, rx.counters[HAL_CNT_LATE] + rx.counters[HAL_CNT_DUPLICATE]);
 }
 
-static void test_sender_restart_is_accepted(void)
+/* ---- frames outside the stream's window ----------------------------------------------- */
+#define STREAM_T0_US 5000000u
+#define STREAM_DT_US 10000u /* 100 Hz */
+
+static uint64_t stream_t(uint16_t seq) { return STREAM_T0_US + STREAM_DT_US * (uint64_t)seq; }
+
+/* Pops everything ready and checks it is samples *next, *next + 1, ... in order, each
+ * complete with its own time. */
+static void pop_in_order(uint16_t *next)
+{
+    hal_sample_t s;
+    while (pop(&s)) {
+        TEST_ASSERT_EQUAL_UINT16(*next, s.seq);
+        TEST_ASSERT_EQUAL_HEX8(HAL_HAS_ALL, s.valid);
+        TEST_ASSERT_EQUAL_UINT64(stream_t(*next), s.t_us);
+        ++*next;
+    }
+}
+
+/* Samples 0..39 of a stream, frames in the order a CAN controller may send them (IMU_GYRO of
+ * k+1 before IMU_SYNC of k when interleave is set), with `extra` fed just before frame
+ * number `at` of the whole stream. Every sample must come out complete and in order. */
+static void stream_with_extra(const hal_can_frame_t *extra, size_t n_extra, size_t at, int interleave)
+{
+    hal_can_frame_t all[40u * HAL_CAN_SAMPLE_FRAMES];
+    size_t n = 0, i;
+    uint16_t k, next = 0u;
+    for (k = 0; k < 40u; ++k) {
+        n += frames_of(k, stream_t(k), &all[n]);
+    }
+    if (interleave) {
+        for (i = 3u; i + 1u < n; i += 4u) { /* swap IMU_SYNC of k and IMU_GYRO of k+1 */
+            const hal_can_frame_t t = all[i];
+            all[i] = all[i + 1u];
+            all[i + 1u] = t;
+        }
+    }
+    hal_can_rx_init(&rx);
+    for (i = 0; i < n; ++i) {
+        if (i == at) {
+            feed_all(extra, n_extra);
+        }
+        hal_can_rx_frame(&rx, &all[i]);
+        pop_in_order(&next);
+    }
+    hal_can_rx_flush(&rx);
+    pop_in_order(&next);
+    TEST_ASSERT_EQUAL_UINT16(40u, next);
+    TEST_ASSERT_EQUAL_UINT32(0u, rx.counters[HAL_CNT_INCOMPLETE] + rx.counters[HAL_CNT_DISCARDED] +
+                                     rx.counters[HAL_CNT_DUPLICATE]);
+}
+
+/* One stale frame (any id, from far behind or beyond the window ahead) at every position
+ * inside and between the samples of a stream: dropped as late, and every sample of the
+ * stream still comes out complete. The frame is inserted while samples 20 to 22 are being
+ * assembled: its distance from them is just outside the window or further. */
+static void test_one_stale_frame_leaves_the_assembly_alone(void)
+{
+    static const int32_t away[] = {-300, -HAL_CAN_SEQ_WINDOW - 1, HAL_CAN_SEQ_WINDOW + 3, 300, 30000};
+    size_t a, at;
+    int kind, interleave;
+    for (a = 0; a < sizeof(away) / sizeof(away[0]); ++a) {
+        for (kind = 0; kind < 4; ++kind) {
+            for (interleave = 0; interleave < 2; ++interleave) {
+                for (at = 4u * 20u; at < 4u * 20u + 8u; ++at) { /* around samples 20 and 21 */
+                    hal_can_frame_t f[HAL_CAN_SAMPLE_FRAMES];
+                    const uint16_t seq = (uint16_t)(20 + away[a]);
+                    frames_of(seq, stream_t(seq), f);
+                    stream_with_extra(&f[kind], 1u, at, interleave);
+                    TEST_ASSERT_EQUAL_UINT32(1u, rx.counters[HAL_CNT_LATE]);
+                }
+            }
+        }
+    }
+}
+
+/* A whole stale sample re-sent (all four frames, one sequence number) is no restart: late. */
+static void test_stale_sample_is_late_not_a_restart(void)
 {
     hal_can_frame_t f[HAL_CAN_SAMPLE_FRAMES];
+    size_t at;
+    frames_of(10u, stream_t(10u), f);
+    for (at = 4u * 30u; at < 4u * 30u + 4u; ++at) {
+        stream_with_extra(f, 4u, at, 0);
+        TEST_ASSERT_EQUAL_UINT32(4u, rx.counters[HAL_CNT_LATE]);
+    }
+    /* two stray frames that do not continue each other: both late */
+    {
+        hal_can_frame_t two[2];
+        frames_of(500u, stream_t(500u), f);
+        two[0] = f[3];
+        frames_of(700u, stream_t(700u), f);
+        two[1] = f[0];
+        stream_with_extra(two, 2u, 4u * 30u + 2u, 0);
+        TEST_ASSERT_EQUAL_UINT32(2u, rx.counters[HAL_CNT_LATE]);
+    }
+    /* held at the end of the input: late too, never a sample */
+    {
+        hal_sample_t s;
+        uint16_t next = 0u, k;
+        hal_can_rx_init(&rx);
+        for (k = 0; k < 5u; ++k) {
+            feed_all(f, frames_of(k, stream_t(k), f));
+            pop_in_order(&next);
+        }
+        feed_all(f, frames_of(9000u, stream_t(9000u), f));
+        hal_can_rx_flush(&rx);
+        TEST_ASSERT_FALSE(pop(&s));
+        TEST_ASSERT_EQUAL_UINT32(4u, rx.counters[HAL_CNT_LATE]);
+    }
+}
+
+/* The sender restarts in the middle of a sample (its IMU_SYNC never sent): the new stream is
+ * followed from its first sample, handed on as soon as a frame of the second one arrives;
+ * the cut sample is discarded, nothing is late. */
+static void test_sender_restart_is_followed(void)
+{
+    hal_can_frame_t f[HAL_CAN_SAMPLE_FRAMES], g[HAL_CAN_SAMPLE_FRAMES];
     hal_sample_t s;
-    hal_can_rx_init(&rx);
-    feed_all(f, frames_of(30000u, 1000000u, f));
-    TEST_ASSERT_TRUE(pop(&s));
-    /* far behind the last sequence number: a restart, not a late frame */
-    feed_all(f, frames_of(0u, 10u, f));
-    TEST_ASSERT_TRUE(pop(&s));
-    TEST_ASSERT_EQUAL_UINT16(0u, s.seq);
-    TEST_ASSERT_EQUAL_UINT32(0u, rx.counters[HAL_CNT_LATE]);
-    /* within the late window behind it: late */
-    feed_all(f, frames_of(65530u, 5u, f));
+    uint16_t k, next = 30000u;
+    int prio;
+    for (prio = 0; prio < 2; ++prio) {
+        hal_can_rx_init(&rx);
+        next = 30000u;
+        for (k = 30000u; k < 30050u; ++k) {
+            feed_all(f, frames_of(k, stream_t(k), f));
+            pop_in_order(&next);
+        }
+        frames_of(30050u, stream_t(30050u), f);
+        feed_all(f, 2u); /* gyro and accel of 30050, then the sender resets */
+        next = 0u;
+        frames_of(0u, stream_t(0u), f);
+        frames_of(1u, stream_t(1u), g);
+        if (prio) { /* priority order: IMU_GYRO of 1 before IMU_SYNC of 0 */
+            feed_all(f, 3u);
+            TEST_ASSERT_FALSE(pop(&s));
+            hal_can_rx_frame(&rx, &g[0]);
+            TEST_ASSERT_FALSE(pop(&s)); /* the restart is followed, sample 0 still waits */
+            hal_can_rx_frame(&rx, &f[3]);
+        } else {
+            feed_all(f, 4u);
+            TEST_ASSERT_FALSE(pop(&s)); /* one sample of a new sequence: held */
+            hal_can_rx_frame(&rx, &g[0]);
+        }
+        pop_in_order(&next);
+        TEST_ASSERT_EQUAL_UINT16(1u, next); /* sample 0 handed on */
+        feed_all(&g[1], 3u);
+        pop_in_order(&next);
+        for (k = 2u; k < 20u; ++k) {
+            feed_all(f, frames_of(k, stream_t(k), f));
+            pop_in_order(&next);
+        }
+        TEST_ASSERT_EQUAL_UINT16(20u, next);
+        TEST_ASSERT_EQUAL_UINT32(1u, rx.counters[HAL_CNT_DISCARDED]); /* 30050 */
+        TEST_ASSERT_EQUAL_UINT32(0u, rx.counters[HAL_CNT_LATE] + rx.counters[HAL_CNT_INCOMPLETE] +
+                                         rx.counters[HAL_CNT_DUPLICATE]);
+    }
+    /* within the window behind the new stream: late */
+    feed_all(f, frames_of(65530u, stream_t(65530u), f));
     TEST_ASSERT_EQUAL_UINT32(4u, rx.counters[HAL_CNT_LATE]);
     TEST_ASSERT_FALSE(pop(&s));
+}
+
+/* Frames lost for longer than the window: the first sample after the jump is handed on
+ * with the first frame of the next one; nothing is lost or counted. */
+static void test_jump_beyond_the_window_is_followed(void)
+{
+    hal_can_frame_t f[HAL_CAN_SAMPLE_FRAMES];
+    uint16_t k, next = 0u;
+    hal_can_rx_init(&rx);
+    for (k = 0; k < 20u; ++k) {
+        feed_all(f, frames_of(k, stream_t(k), f));
+        pop_in_order(&next);
+    }
+    next = 220u;
+    for (k = 220u; k < 240u; ++k) {
+        feed_all(f, frames_of(k, stream_t(k), f));
+        pop_in_order(&next);
+        if (k == 220u) {
+            TEST_ASSERT_EQUAL_UINT16(220u, next); /* held */
+        }
+    }
+    TEST_ASSERT_EQUAL_UINT16(240u, next);
+    TEST_ASSERT_EQUAL_UINT32(0u, rx.counters[HAL_CNT_LATE] + rx.counters[HAL_CNT_INCOMPLETE] +
+                                     rx.counters[HAL_CNT_DISCARDED] + rx.counters[HAL_CNT_DUPLICATE]);
 }
 
 static void test_ready_queue_overflow_drops_oldest(void)
@@ -395,7 +565,10 @@ int main(void)
     RUN_TEST(test_optional_sensors_and_non_finite_values);
     RUN_TEST(test_saturation_is_clamped_and_flagged);
     RUN_TEST(test_time_and_sequence_wrap);
-    RUN_TEST(test_sender_restart_is_accepted);
+    RUN_TEST(test_one_stale_frame_leaves_the_assembly_alone);
+    RUN_TEST(test_stale_sample_is_late_not_a_restart);
+    RUN_TEST(test_sender_restart_is_followed);
+    RUN_TEST(test_jump_beyond_the_window_is_followed);
     RUN_TEST(test_ready_queue_overflow_drops_oldest);
     RUN_TEST(test_output_round_trip_and_clamping);
     RUN_TEST(test_names);
