@@ -53,6 +53,8 @@ ekf_scalar_t att_cov_get(const att_cov_t *c, int i, int j);
 ekf_scalar_t att_cov_var(const att_cov_t *c, int i);
 /* All of P, row-major, in the filter's scalar type. */
 void att_cov_to_full(const att_cov_t *c, ekf_scalar_t P[ATT_N * ATT_N]);
+/* P from a row-major symmetric matrix (its lower triangle is read, and mirrored). */
+void att_cov_from_full(att_cov_t *c, const ekf_scalar_t P[ATT_N * ATT_N]);
 
 /* ---- prediction ---- */
 

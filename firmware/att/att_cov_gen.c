@@ -64,6 +64,16 @@ void att_cov_to_full(const att_cov_t *c, ekf_scalar_t P[ATT_N * ATT_N])
     }
 }
 
+void att_cov_from_full(att_cov_t *c, const ekf_scalar_t P[ATT_N * ATT_N])
+{
+    int i, j;
+    for (i = 0; i < ATT_N; ++i) {
+        for (j = 0; j <= i; ++j) {
+            c->p[att_cov_row[i][j]] = P[i * ATT_N + j];
+        }
+    }
+}
+
 /* ---- prediction ---- */
 
 /* Packed indices of the columns the prediction reads: step 1, P(P, Q, R, PHI, THETA, PSI, PHID, THETAD)

@@ -36,6 +36,16 @@ void att_cov_to_full(const att_cov_t *c, ekf_scalar_t P[ATT_N * ATT_N])
     }
 }
 
+void att_cov_from_full(att_cov_t *c, const ekf_scalar_t P[ATT_N * ATT_N])
+{
+    int i, j;
+    for (i = 0; i < ATT_N; ++i) {
+        for (j = 0; j <= i; ++j) {
+            PIJ(c, i, j) = PIJ(c, j, i) = P[i * ATT_N + j];
+        }
+    }
+}
+
 ekf_status_t att_cov_predict(att_cov_t *c, const ekf_scalar_t d1[ATT_GEN_F1_NNZ],
                              const ekf_scalar_t d2[ATT_GEN_F2_NNZ], const ekf_scalar_t var[3],
                              ekf_scalar_t inc_var[3])

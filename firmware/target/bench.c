@@ -100,15 +100,6 @@ static int check_calibration(uint32_t base)
     return insns == 2002u;
 }
 
-/* Simulated body rate, rad/s: a slow tumble with components of different frequencies, so
- * that every angle and rate takes many values. */
-static void motion(double t, double w[3])
-{
-    w[0] = 0.8 * sin(2.0 * 3.141592653589793 * 0.23 * t);
-    w[1] = 0.5 * sin(2.0 * 3.141592653589793 * 0.17 * t + 1.0);
-    w[2] = 0.6 * sin(2.0 * 3.141592653589793 * 0.11 * t + 2.0);
-}
-
 int main(int argc, char **argv)
 {
     static att_ekf_t filter, staged;
@@ -149,7 +140,7 @@ int main(int argc, char **argv)
         return 1;
     }
     ts_sim_default(&cfg);
-    ts_sim_init(&sim, &cfg, 12345u, 0.2, -0.1, 1.0);
+    ts_sim_init(&sim, &cfg, TS_BENCH_SEED, TS_BENCH_PHI, TS_BENCH_THETA, TS_BENCH_PSI);
 
     for (k = 0; k < samples; ++k) {
         static const double still[3] = {0.0, 0.0, 0.0};
@@ -160,7 +151,7 @@ int main(int argc, char **argv)
         uint32_t t0, t1, used;
         uint32_t c_gyro, c_predict, c_accel, c_mag;
 
-        motion(sim.t, w);
+        ts_bench_motion(sim.t, w);
         ts_sim_step(&sim, (att_flags(&filter) & ATT_FLAG_ALIGNED) ? w : still, NULL, &s);
         if ((att_flags(&filter) & ATT_FLAG_ALIGNED) == 0u) {
             if (att_step(&filter, &s, NULL) != EKF_OK) {
