@@ -83,8 +83,7 @@ static ekf_status_t refuse(att_ekf_t *f, ekf_status_t st)
  * its error counter (att.h). Bad input is refused before the copy is taken. One copy of
  * sizeof(att_vars_t) per call on the normal path (docs/architecture.md, "Contract"). */
 
-/* dst = src, byte for byte (padding included, so that a restored filter compares equal). */
-static void copy_vars(att_vars_t *dst, const att_vars_t *src)
+void att_vars_copy(att_vars_t *dst, const att_vars_t *src)
 {
 #if defined(__GNUC__) && defined(__thumb2__)
     /* 8 words per ldm/stm pair: 4 instructions per 32 bytes, where the C library's memcpy
@@ -109,7 +108,7 @@ static void copy_vars(att_vars_t *dst, const att_vars_t *src)
 /* A call refused after its stages ran: the variables back, then the one error counter. */
 static ekf_status_t restore(att_ekf_t *f, const att_vars_t *saved, ekf_status_t st)
 {
-    copy_vars(&f->vars, saved);
+    att_vars_copy(&f->vars, saved);
     return refuse(f, st);
 }
 
@@ -195,7 +194,7 @@ ekf_status_t att_align(att_ekf_t *f, const ekf_scalar_t accel[3], const ekf_scal
     if (st != EKF_OK) {
         return refuse(f, st);
     }
-    copy_vars(&saved, &f->vars);
+    att_vars_copy(&saved, &f->vars);
     (void)att_stage_align(&f->vars, &f->settings, accel, mag);
     return commit(f, &saved);
 }
@@ -211,7 +210,7 @@ ekf_status_t att_predict(att_ekf_t *f, ekf_scalar_t dt)
     if (st != EKF_OK) {
         return refuse(f, st);
     }
-    copy_vars(&saved, &f->vars);
+    att_vars_copy(&saved, &f->vars);
     st = att_stage_predict(&f->vars, &f->settings, dt);
     if (is_error(st)) {
         return restore(f, &saved, st);
@@ -233,7 +232,7 @@ static ekf_status_t public_update(att_ekf_t *f, const ekf_scalar_t vec[3], ekf_s
     if (st != EKF_OK) {
         return refuse(f, st);
     }
-    copy_vars(&saved, &f->vars);
+    att_vars_copy(&saved, &f->vars);
     st = stage(&f->vars, &f->settings, vec);
     if (is_error(st)) {
         return restore(f, &saved, st);
@@ -358,7 +357,7 @@ ekf_status_t att_step(att_ekf_t *f, const att_sample_t *sample, att_step_report_
     if (st != EKF_OK) {
         return refuse(f, st);
     }
-    copy_vars(&saved, &f->vars);
+    att_vars_copy(&saved, &f->vars);
     w = &f->vars; /* the stages run in place */
     /* rest detection sees every complete sample, from the first one on, so that the
      * initial rest already yields the gyroscope offset; while aligning, only samples with
