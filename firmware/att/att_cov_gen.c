@@ -359,7 +359,7 @@ static int indefinite(const ekf_scalar_t p[ATT_COV_NP], const ekf_scalar_t b[ATT
 }
 
 /* The checks ekf_update_scalar makes before it forms S; info zeroed. */
-static ekf_status_t update_args(ekf_scalar_t nu, ekf_scalar_t r_var, ekf_innov_t *info)
+static inline ekf_status_t update_args(ekf_scalar_t nu, ekf_scalar_t r_var, ekf_innov_t *info)
 {
     if (info != NULL) {
         info->innovation = EKF_C(0);

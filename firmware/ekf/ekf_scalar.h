@@ -167,6 +167,19 @@ static inline uint32_t ekf_scalar_saturations(void) { return 0u; }
 static inline void ekf_scalar_saturations_reset(void) {}
 #endif
 
+/* v, or exactly 0 if |v| < EKF_SCALAR_TINY (1e-30 in the IEEE builds, far below any
+ * physical value in SI; nothing in fixed point, which has no subnormals). For quantities
+ * that decay geometrically towards zero, like a low-pass filter whose input is exactly zero:
+ * in IEEE arithmetic such a value never reaches zero but settles on a subnormal number
+ * (y - k y rounds back to y once k y is below half its spacing), and every later operation on
+ * it takes the slow path of an x86 FPU (docs/performance.md, "Subnormal numbers"). */
+#if defined(EKF_SCALAR_FIXED)
+#define EKF_SCALAR_TINY EKF_C(0)
+#else
+#define EKF_SCALAR_TINY EKF_C(1e-30)
+#endif
+static inline ekf_scalar_t ekf_flush_tiny(ekf_scalar_t v) { return (ekf_abs(v) < EKF_SCALAR_TINY) ? EKF_C(0) : v; }
+
 static inline ekf_scalar_t ekf_min(ekf_scalar_t a, ekf_scalar_t b) { return (a < b) ? a : b; }
 static inline ekf_scalar_t ekf_max(ekf_scalar_t a, ekf_scalar_t b) { return (a > b) ? a : b; }
 static inline ekf_scalar_t ekf_clamp(ekf_scalar_t a, ekf_scalar_t lo, ekf_scalar_t hi)
@@ -183,6 +196,9 @@ static inline ekf_scalar_t ekf_sq(ekf_scalar_t a) { return ekf_mul(a, a); }
  * range (what the filter nearly always has) costs two comparisons; ekf_wrap_pi_far
  * (ekf_math.c) reduces the others. */
 ekf_scalar_t ekf_wrap_pi_far(ekf_scalar_t a);
+#if defined(__GNUC__)
+__attribute__((always_inline)) /* (GCC at -Os would keep a called copy per file) */
+#endif
 static inline ekf_scalar_t ekf_wrap_pi(ekf_scalar_t a)
 {
     return (a >= EKF_PI || a < ekf_neg(EKF_PI)) ? ekf_wrap_pi_far(a) : a;

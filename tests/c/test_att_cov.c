@@ -455,6 +455,57 @@ static void test_filter_covariances(void)
     TEST_ASSERT_TRUE(worst <= 16.0 * ekf_to_double(EKF_SCALAR_EPS));
 }
 
+/* A value the filter keeps is a normal number or zero, never subnormal. */
+static int is_subnormal(ekf_scalar_t v)
+{
+    const double d = fabs(ekf_to_double(v));
+#if defined(EKF_SCALAR_FLOAT)
+    return d > 0.0 && d < 1.17549435e-38;
+#else
+    return d > 0.0 && d < 2.2250738585072014e-308;
+#endif
+}
+
+/* A rotation, then a long rest with a gyroscope that reads exactly zero (a noise-free or
+ * quantised sensor): the low-pass filters of the rest detector and the offset decay to
+ * exactly zero, not to a subnormal number on which every later operation would take an x86
+ * FPU's slow path (docs/performance.md, "Subnormal numbers"). */
+static void test_rest_with_exact_zero_gyro_keeps_no_subnormal(void)
+{
+    static const double spin[3] = {0.5, -0.3, 0.4}, zero[3] = {0.0, 0.0, 0.0};
+    static att_ekf_t f;
+    ts_sim_cfg_t cfg;
+    ts_sim_t sim;
+    int k, i, found = 0;
+    ts_sim_default(&cfg);
+    cfg.gyro_noise = 0.0;
+    cfg.gyro_bias[0] = cfg.gyro_bias[1] = cfg.gyro_bias[2] = 0.0;
+    ts_sim_init(&sim, &cfg, 5, 0.0, 0.0, 0.0);
+    TEST_ASSERT_EQUAL_INT(EKF_OK, att_init(&f, &att_default_settings));
+    for (k = 0; k < 12000; ++k) { /* (the old detector's low-pass was subnormal from step 5,150 on) */
+        att_sample_t smp;
+        ts_sim_step(&sim, (k > 300 && k < 800) ? spin : zero, NULL, &smp);
+        (void)att_step(&f, &smp, NULL);
+        if (k > 8000) {
+            const att_vars_t *v = &f.vars;
+            ekf_scalar_t P[ATT_NN];
+            att_get_covariance(&f, P);
+            for (i = 0; i < ATT_NN; ++i) {
+                found |= is_subnormal(P[i]);
+            }
+            for (i = 0; i < ATT_N; ++i) {
+                found |= is_subnormal(v->x[i]);
+            }
+            for (i = 0; i < 3; ++i) {
+                found |= is_subnormal(v->rest.gyro_lp[i]) | is_subnormal(v->rest.acc_lp[i]) |
+                         is_subnormal(v->rest.bias[i]) | is_subnormal(v->accel_lp[i]);
+            }
+            found |= is_subnormal(v->accel_dev_var);
+        }
+    }
+    TEST_ASSERT_FALSE_MESSAGE(found, "a subnormal value in the filter at rest");
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -465,5 +516,6 @@ int main(void)
     RUN_TEST(test_bounds_and_remaps_bit_identical);
     RUN_TEST(test_guard_same_outcome);
     RUN_TEST(test_filter_covariances);
+    RUN_TEST(test_rest_with_exact_zero_gyro_keeps_no_subnormal);
     return UNITY_END();
 }
