@@ -106,7 +106,7 @@ ekf_status_t att_cov_predict(att_cov_t *c, const ekf_scalar_t d1[ATT_GEN_F1_NNZ]
                              ekf_scalar_t inc_var[3])
 {
     ekf_scalar_t *const p = c->p;
-    ekf_scalar_t A[3][8], B[3][8], R[3][6];
+    ekf_scalar_t A[3][8];
     int n;
     const ekf_scalar_t a0 = d1[0];
     const ekf_scalar_t a1 = d1[1];
@@ -143,19 +143,16 @@ ekf_status_t att_cov_predict(att_cov_t *c, const ekf_scalar_t d1[ATT_GEN_F1_NNZ]
         const ekf_scalar_t m3 = ekf_mac(c3, h, c6);
         const ekf_scalar_t m4 = ekf_mac(c4, h, c7);
         const ekf_scalar_t b3 = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mul(a0, c0), a1, c1), a2, c2), a3, m3), a4, m4);
-        B[0][n] = b3;
         A[0][n] = ekf_add(c3, b3);
         const ekf_scalar_t b4 = ekf_mac(ekf_mac(ekf_mul(a7, c1), a8, c2), a9, m3);
-        B[1][n] = b4;
         A[1][n] = ekf_add(c4, b4);
         const ekf_scalar_t b5 = ekf_mac(ekf_mac(ekf_mac(ekf_mul(a11, c1), a12, c2), a13, m3), a14, m4);
-        B[2][n] = b5;
         A[2][n] = ekf_add(c5, b5);
     }
     /* (D P D^T)_ii of the angle rows: the variance of each angle's increment */
-    inc_var[0] = ekf_max(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mul(a0, B[0][0]), a1, B[0][1]), a2, B[0][2]), a3, B[0][3]), a4, B[0][4]), a5, B[0][6]), a6, B[0][7]), EKF_C(0));
-    inc_var[1] = ekf_max(ekf_mac(ekf_mac(ekf_mac(ekf_mul(a7, B[1][1]), a8, B[1][2]), a9, B[1][3]), a10, B[1][6]), EKF_C(0));
-    inc_var[2] = ekf_max(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mul(a11, B[2][1]), a12, B[2][2]), a13, B[2][3]), a14, B[2][4]), a15, B[2][6]), a16, B[2][7]), EKF_C(0));
+    inc_var[0] = ekf_max(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mul(a0, ekf_sub(A[0][0], p[6])), a1, ekf_sub(A[0][1], p[7])), a2, ekf_sub(A[0][2], p[8])), a3, ekf_sub(A[0][3], p[9])), a4, ekf_sub(A[0][4], p[13])), a5, ekf_sub(A[0][6], p[24])), a6, ekf_sub(A[0][7], p[31])), EKF_C(0));
+    inc_var[1] = ekf_max(ekf_mac(ekf_mac(ekf_mac(ekf_mul(a7, ekf_sub(A[1][1], p[11])), a8, ekf_sub(A[1][2], p[12])), a9, ekf_sub(A[1][3], p[13])), a10, ekf_sub(A[1][6], p[25])), EKF_C(0));
+    inc_var[2] = ekf_max(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mul(a11, ekf_sub(A[2][1], p[16])), a12, ekf_sub(A[2][2], p[17])), a13, ekf_sub(A[2][3], p[18])), a14, ekf_sub(A[2][4], p[19])), a15, ekf_sub(A[2][6], p[26])), a16, ekf_sub(A[2][7], p[33])), EKF_C(0));
     /* P1 = A F1^T: the angle rows, and the body-rate noise (G diag(var) G^T = F2 diag(var, 0) F2^T) */
     p[6] = A[0][0];
     p[7] = A[0][1];
@@ -196,21 +193,18 @@ ekf_status_t att_cov_predict(att_cov_t *c, const ekf_scalar_t d1[ATT_GEN_F1_NNZ]
         const ekf_scalar_t c4 = p[ix[4]];
         const ekf_scalar_t r6 = ekf_mac(ekf_mac(ekf_mac(ekf_mac(c0, f1, c1), f2, c2), f3, c3), f4, c4);
         p[ix[5]] = r6;
-        R[0][n] = r6;
         const ekf_scalar_t r7 = ekf_mac(ekf_mac(ekf_mul(f6, c1), f7, c2), f8, c3);
         p[ix[6]] = r7;
-        R[1][n] = r7;
         const ekf_scalar_t r8 = ekf_mac(ekf_mac(ekf_mac(ekf_mul(f10, c1), f11, c2), f12, c3), f13, c4);
         p[ix[7]] = r8;
-        R[2][n] = r8;
     }
     /* P2 = R F2^T in the Euler-rate block */
-    p[27] = ekf_mac(ekf_mac(ekf_mac(ekf_mac(R[0][0], f1, R[0][1]), f2, R[0][2]), f3, R[0][3]), f4, R[0][4]);
-    p[34] = ekf_mac(ekf_mac(ekf_mul(f6, R[0][1]), f7, R[0][2]), f8, R[0][3]);
-    p[42] = ekf_mac(ekf_mac(ekf_mac(ekf_mul(f10, R[0][1]), f11, R[0][2]), f12, R[0][3]), f13, R[0][4]);
-    p[35] = ekf_mac(ekf_mac(ekf_mul(f6, R[1][1]), f7, R[1][2]), f8, R[1][3]);
-    p[43] = ekf_mac(ekf_mac(ekf_mac(ekf_mul(f10, R[1][1]), f11, R[1][2]), f12, R[1][3]), f13, R[1][4]);
-    p[44] = ekf_mac(ekf_mac(ekf_mac(ekf_mul(f10, R[2][1]), f11, R[2][2]), f12, R[2][3]), f13, R[2][4]);
+    p[27] = ekf_mac(ekf_mac(ekf_mac(ekf_mac(p[21], f1, p[22]), f2, p[23]), f3, p[24]), f4, p[25]);
+    p[34] = ekf_mac(ekf_mac(ekf_mul(f6, p[22]), f7, p[23]), f8, p[24]);
+    p[42] = ekf_mac(ekf_mac(ekf_mac(ekf_mul(f10, p[22]), f11, p[23]), f12, p[24]), f13, p[25]);
+    p[35] = ekf_mac(ekf_mac(ekf_mul(f6, p[29]), f7, p[30]), f8, p[31]);
+    p[43] = ekf_mac(ekf_mac(ekf_mac(ekf_mul(f10, p[29]), f11, p[30]), f12, p[31]), f13, p[32]);
+    p[44] = ekf_mac(ekf_mac(ekf_mac(ekf_mul(f10, p[37]), f11, p[38]), f12, p[39]), f13, p[40]);
     return EKF_OK;
 }
 

@@ -175,7 +175,7 @@ def predict_kernel() -> str:
     tab2 = [[L(c, j) for c in d2_cols] + [L(r, j) for r in m2] for j in keep]
     b = Block()
     b.raw("ekf_scalar_t *const p = c->p;")
-    b.raw(f"ekf_scalar_t A[{len(m1)}][{len(cols1)}], B[{len(m1)}][{len(cols1)}], R[{len(m2)}][{len(keep)}];")
+    b.raw(f"ekf_scalar_t A[{len(m1)}][{len(cols1)}];")
     b.raw("int n;")
     for k in range(len(e1)):
         b.let(f"a{k}", f"d1[{k}]")
@@ -192,8 +192,8 @@ def predict_kernel() -> str:
         b.let("h", f"ekf_mul(EKF_C(0.5), a{k_dt[0]})")  # dt / 2: that entry of D1 is dt itself
 
     # Step 1: B = D1 P and A = P + B in the angle rows, one column per pass (nothing written
-    # yet); then the increment variances d1_k B_i,ck, the angle block of P1 = A F1^T and
-    # the stores.
+    # yet); then the increment variances d1_k B_i,ck (B = A - P), the angle block of
+    # P1 = A F1^T and the stores. (Stack: only A is kept, 24 values.)
     b.raw("/* step 1: B = D1 P, A = F1 P = P + B in the angle rows (columns " +
           " ".join(STATES[j] for j in cols1) + ") */")
     b.raw(f"for (n = 0; n < {len(cols1)}; ++n) {{")
@@ -206,14 +206,15 @@ def predict_kernel() -> str:
     for x, i in enumerate(m1):
         terms = [(f"a{k}", f"m{c}" if c in mid_ang else f"c{c}") for k, c in rows1[i] if c not in mid_rate]
         body.let(f"b{i}", chain(terms))
-        body.raw(f"B[{x}][n] = b{i};")
         body.raw(f"A[{x}][n] = ekf_add(c{i}, b{i});")
     b.lines.extend(body.lines)
     b.raw("}")
     n1 = {j: x for x, j in enumerate(cols1)}
     b.raw("/* (D P D^T)_ii of the angle rows: the variance of each angle's increment */")
     for x, i in enumerate(m1):
-        v = chain([(f"a{k}", f"B[{x}][{n1[c]}]") for k, c in rows1[i]])
+        # B_i,c = A_i,c - P_i,c (P not written yet): the rounding of A is eps |A|, which
+        # the quadratic form scales by d1 ~ dt: far below the variance it is added to
+        v = chain([(f"a{k}", f"ekf_sub(A[{x}][{n1[c]}], p[{L(i, c)}])") for k, c in rows1[i]])
         b.raw(f"inc_var[{x}] = ekf_max({v}, EKF_C(0));")
     b.raw("/* P1 = A F1^T: the angle rows, and the body-rate noise (G diag(var) G^T = F2 diag(var, 0) F2^T) */")
     for x, i in enumerate(m1):
@@ -229,7 +230,8 @@ def predict_kernel() -> str:
     for i in omega:
         b.raw(f"p[{L(i, i)}] = ekf_add(p[{L(i, i)}], var[{i}]);")
     # Step 2: the rows M2 of P2 = F2 P1 F2^T: R = F2 P1 one kept column per pass (stored at
-    # once: nothing reads the old Euler-rate rows any more), then the M2 x M2 block R F2^T.
+    # once: nothing reads the old Euler-rate rows any more), then the M2 x M2 block R F2^T
+    # from the stored R.
     for k in range(len(e2)):
         if k not in const2:
             b.let(f"f{k}", f"d2[{k}]")
@@ -243,16 +245,14 @@ def predict_kernel() -> str:
     for x, r in enumerate(m2):
         body.let(f"r{r}", chain([(coef2[r, c], f"c{c}") for _, c in rows2[r] if c != r]))
         body.raw(f"p[ix[{len(d2_cols) + x}]] = r{r};")
-        body.raw(f"R[{x}][n] = r{r};")
     b.lines.extend(body.lines)
     b.raw("}")
-    n2 = {j: x for x, j in enumerate(keep)}
     b.raw("/* P2 = R F2^T in the Euler-rate block */")
     for x, r in enumerate(m2):
         for t in m2:
             if t < r:
                 continue
-            v = chain([(coef2[t, c], f"R[{x}][{n2[c]}]") for _, c in rows2[t] if c != t])
+            v = chain([(coef2[t, c], f"p[{L(r, c)}]") for _, c in rows2[t] if c != t])  # R, stored
             b.raw(f"p[{L(r, t)}] = {v};")
     b.raw("return EKF_OK;")
 
