@@ -117,7 +117,7 @@ def main():
     ap.add_argument("--samples", type=int, default=20,
                     help="benchmark samples (the first 10 align the filter; default 20)")
     ap.add_argument("--root", default="att_step", help="function whose call tree is profiled")
-    ap.add_argument("--require", default="att_predict.part.0",
+    ap.add_argument("--require", default="att_stage_predict",
                     help="count only root calls that called this function (default: the "
                          "steps after the alignment, which run the prediction)")
     ap.add_argument("--top", type=int, default=30, help="functions listed (default 30)")

@@ -6,6 +6,7 @@
 #include "att.h"
 
 #include <stddef.h>
+#include <string.h>
 
 #include "att_internal.h"
 #include "att_model.h"
@@ -74,22 +75,50 @@ static ekf_status_t refuse(att_ekf_t *f, ekf_status_t st)
     return st;
 }
 
-/* ---- the working copy and the commit ----
- * Every call that changes the filter runs its stages on a copy of the variables and
- * replaces them only when the whole call succeeded, so that a refusal anywhere (bad input
- * found before the copy, a numeric failure in the middle of a stage) leaves the filter
- * exactly as it was but for its error counter (att.h). The copy is sizeof(att_vars_t)
- * (docs/architecture.md, "Contract"): one struct assignment in, one out. */
+/* ---- the saved copy and the commit ----
+ * Every call that changes the filter first saves its variables (everything but the
+ * settings) in one copy, runs its stages on the variables themselves, and puts the copy
+ * back if anything in the call fails, so that a refusal anywhere (a numeric failure in the
+ * middle of a stage, or the guard at the end) leaves the filter exactly as it was but for
+ * its error counter (att.h). Bad input is refused before the copy is taken. One copy of
+ * sizeof(att_vars_t) per call on the normal path (docs/architecture.md, "Contract"). */
 
-/* The end of every call that ran stages on the working copy w: the guard and a last
- * finiteness check on w, then w replaces the variables. EKF_OK, or EKF_ERR_NUMERIC
- * (counted; the filter unchanged). */
-static ekf_status_t commit(att_ekf_t *f, att_vars_t *w)
+void att_vars_copy(att_vars_t *dst, const att_vars_t *src)
 {
-    if (att_guard_covariance(w, &f->settings) != EKF_OK || !ekf_all_finite(w->x, ATT_N)) {
-        return refuse(f, EKF_ERR_NUMERIC);
+#if defined(__GNUC__) && defined(__thumb2__)
+    /* 8 words per ldm/stm pair: 4 instructions per 32 bytes, where the C library's memcpy
+     * spends 16 ldr/str pairs on 64 (docs/performance.md, "Commit") */
+    unsigned char *d = (unsigned char *)dst;
+    const unsigned char *s = (const unsigned char *)src;
+    unsigned n = (unsigned)(sizeof *dst / 32u);
+    __asm__ volatile("1:\n\t"
+                     "ldmia %[s]!, {r2, r3, r4, r5, r6, r8, r9, r10}\n\t"
+                     "stmia %[d]!, {r2, r3, r4, r5, r6, r8, r9, r10}\n\t"
+                     "subs %[n], %[n], #1\n\t"
+                     "bne 1b"
+                     : [d] "+r"(d), [s] "+r"(s), [n] "+r"(n)
+                     :
+                     : "r2", "r3", "r4", "r5", "r6", "r8", "r9", "r10", "cc", "memory");
+    memcpy(d, s, sizeof *dst % 32u);
+#else
+    memcpy(dst, src, sizeof *dst);
+#endif
+}
+
+/* A call refused after its stages ran: the variables back, then the one error counter. */
+static ekf_status_t restore(att_ekf_t *f, const att_vars_t *saved, ekf_status_t st)
+{
+    att_vars_copy(&f->vars, saved);
+    return refuse(f, st);
+}
+
+/* The end of every call that ran stages (the variables saved in *saved): the guard and a
+ * last finiteness check. EKF_OK, or EKF_ERR_NUMERIC (the variables restored, counted). */
+static ekf_status_t commit(att_ekf_t *f, const att_vars_t *saved)
+{
+    if (att_guard_covariance(&f->vars, &f->settings) != EKF_OK || !ekf_all_finite(f->vars.x, ATT_N)) {
+        return restore(f, saved, EKF_ERR_NUMERIC);
     }
-    f->vars = *w;
     return EKF_OK;
 }
 
@@ -130,14 +159,12 @@ ekf_status_t att_guard_covariance(att_vars_t *v, const att_settings_t *s)
         return EKF_OK;
     }
     /* The updates floor the variances they reduce, but the prediction can reduce one too
-     * (F P F^T with a negative correlation, and no process noise on it if angle_walk = 0).
-     * Raising a diagonal entry keeps P positive (semi-)definite. */
-    if (att_cov_floor_diag(&v->cov, s->var_floor) != 0) {
-        return EKF_ERR_NUMERIC; /* a variance not finite, or negative beyond rounding */
-    }
-    rounds = att_cov_ensure_pd(&v->cov, ATT_PD_MARGIN, s->var_floor);
+     * (F P F^T with a negative correlation, and no process noise on it if angle_walk = 0):
+     * the guard floors them first (raising a diagonal entry keeps P positive
+     * (semi-)definite), then checks and if need be repairs. */
+    rounds = att_cov_guard(&v->cov, ATT_PD_MARGIN, s->var_floor);
     if (rounds < 0) {
-        return EKF_ERR_NUMERIC; /* a non-finite P: nothing to repair */
+        return EKF_ERR_NUMERIC; /* a non-finite P, or a variance negative beyond rounding */
     }
     if (rounds > 0) {
         v->flags |= ATT_FLAG_COV_REPAIRED;
@@ -152,7 +179,7 @@ ekf_status_t att_guard_covariance(att_vars_t *v, const att_settings_t *s)
 
 ekf_status_t att_align(att_ekf_t *f, const ekf_scalar_t accel[3], const ekf_scalar_t mag[3])
 {
-    att_vars_t w;
+    att_vars_t saved;
     ekf_status_t st;
     if (f == NULL) {
         return EKF_ERR_NULL;
@@ -167,14 +194,14 @@ ekf_status_t att_align(att_ekf_t *f, const ekf_scalar_t accel[3], const ekf_scal
     if (st != EKF_OK) {
         return refuse(f, st);
     }
-    w = f->vars;
-    (void)att_stage_align(&w, &f->settings, accel, mag);
-    return commit(f, &w);
+    att_vars_copy(&saved, &f->vars);
+    (void)att_stage_align(&f->vars, &f->settings, accel, mag);
+    return commit(f, &saved);
 }
 
 ekf_status_t att_predict(att_ekf_t *f, ekf_scalar_t dt)
 {
-    att_vars_t w;
+    att_vars_t saved;
     ekf_status_t st;
     if (f == NULL) {
         return EKF_ERR_NULL;
@@ -183,12 +210,12 @@ ekf_status_t att_predict(att_ekf_t *f, ekf_scalar_t dt)
     if (st != EKF_OK) {
         return refuse(f, st);
     }
-    w = f->vars;
-    st = att_stage_predict(&w, &f->settings, dt);
+    att_vars_copy(&saved, &f->vars);
+    st = att_stage_predict(&f->vars, &f->settings, dt);
     if (is_error(st)) {
-        return refuse(f, st);
+        return restore(f, &saved, st);
     }
-    return (commit(f, &w) == EKF_OK) ? st : EKF_ERR_NUMERIC;
+    return (commit(f, &saved) == EKF_OK) ? st : EKF_ERR_NUMERIC;
 }
 
 typedef ekf_status_t (*sensor_stage_t)(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t vec[3]);
@@ -196,7 +223,7 @@ typedef ekf_status_t (*sensor_stage_t)(att_vars_t *v, const att_settings_t *s, c
 /* att_update_gyro, _accel, _mag: aligned filter, a valid vector, one stage. */
 static ekf_status_t public_update(att_ekf_t *f, const ekf_scalar_t vec[3], ekf_scalar_t range, sensor_stage_t stage)
 {
-    att_vars_t w;
+    att_vars_t saved;
     ekf_status_t st;
     if (f == NULL) {
         return EKF_ERR_NULL;
@@ -205,12 +232,12 @@ static ekf_status_t public_update(att_ekf_t *f, const ekf_scalar_t vec[3], ekf_s
     if (st != EKF_OK) {
         return refuse(f, st);
     }
-    w = f->vars;
-    st = stage(&w, &f->settings, vec);
+    att_vars_copy(&saved, &f->vars);
+    st = stage(&f->vars, &f->settings, vec);
     if (is_error(st)) {
-        return refuse(f, st);
+        return restore(f, &saved, st);
     }
-    return (commit(f, &w) == EKF_OK) ? st : EKF_ERR_NUMERIC;
+    return (commit(f, &saved) == EKF_OK) ? st : EKF_ERR_NUMERIC;
 }
 
 ekf_status_t att_update_gyro(att_ekf_t *f, const ekf_scalar_t gyro[3])
@@ -292,11 +319,11 @@ static ekf_status_t validate_sample(const att_ekf_t *f, const att_sample_t *sm, 
 }
 
 /* A numeric failure in stage *slot: the whole step is discarded. */
-static ekf_status_t discard(att_ekf_t *f, att_step_report_t *rep, ekf_status_t *slot)
+static ekf_status_t discard(att_ekf_t *f, const att_vars_t *saved, att_step_report_t *rep, ekf_status_t *slot)
 {
     report_all(rep, EKF_SKIPPED);
     *slot = EKF_ERR_NUMERIC;
-    return refuse(f, EKF_ERR_NUMERIC);
+    return restore(f, saved, EKF_ERR_NUMERIC);
 }
 
 /* The gyroscope stage of a sample: a saturated reading widens the rate uncertainty, a
@@ -318,7 +345,7 @@ ekf_status_t att_step(att_ekf_t *f, const att_sample_t *sample, att_step_report_
     att_step_report_t *rep = (report != NULL) ? report : &local;
     const att_settings_t *s;
     ekf_status_t *last = &rep->predict; /* the slot of the last stage that ran */
-    att_vars_t w;
+    att_vars_t saved, *w;
     ekf_status_t st;
 
     if (f == NULL || sample == NULL) {
@@ -330,55 +357,56 @@ ekf_status_t att_step(att_ekf_t *f, const att_sample_t *sample, att_step_report_
     if (st != EKF_OK) {
         return refuse(f, st);
     }
-    w = f->vars;
+    att_vars_copy(&saved, &f->vars);
+    w = &f->vars; /* the stages run in place */
     /* rest detection sees every complete sample, from the first one on, so that the
      * initial rest already yields the gyroscope offset; while aligning, only samples with
      * a valid time step (the first one after a start has none) */
-    w.flags &= ~ATT_FLAG_AT_REST;
+    w->flags &= ~ATT_FLAG_AT_REST;
     if ((sample->valid & (ATT_HAS_GYRO | ATT_HAS_ACCEL | ATT_GYRO_SATURATED)) == (ATT_HAS_GYRO | ATT_HAS_ACCEL) &&
         check_dt(s, sample->dt) == EKF_OK &&
-        att_rest_update(&w.rest, &s->rest, sample->gyro, sample->accel, sample->dt)) {
-        w.flags |= ATT_FLAG_AT_REST;
+        att_rest_update(&w->rest, &s->rest, sample->gyro, sample->accel, sample->dt)) {
+        w->flags |= ATT_FLAG_AT_REST;
     }
-    if ((w.flags & ATT_FLAG_ALIGNED) == 0u) {
+    if ((w->flags & ATT_FLAG_ALIGNED) == 0u) {
         /* averaging, then the alignment and the gyro of its last sample */
         last = &rep->accel;
-        rep->accel = att_stage_align_sample(&w, s, sample);
-        if ((w.flags & ATT_FLAG_ALIGNED) != 0u) {
+        rep->accel = att_stage_align_sample(w, s, sample);
+        if ((w->flags & ATT_FLAG_ALIGNED) != 0u) {
             last = &rep->gyro;
-            rep->gyro = gyro_stage(&w, s, sample);
+            rep->gyro = gyro_stage(w, s, sample);
             if (is_error(rep->gyro)) {
-                return discard(f, rep, &rep->gyro);
+                return discard(f, &saved, rep, &rep->gyro);
             }
         }
     } else {
         /* The gyro sample describes the rotation over the interval ending now: fuse it
          * before propagating, so the angles integrate it (docs/derivation.md, "Step order"). */
-        rep->gyro = gyro_stage(&w, s, sample);
+        rep->gyro = gyro_stage(w, s, sample);
         if (is_error(rep->gyro)) {
-            return discard(f, rep, &rep->gyro);
+            return discard(f, &saved, rep, &rep->gyro);
         }
-        rep->predict = att_stage_predict(&w, s, sample->dt);
+        rep->predict = att_stage_predict(w, s, sample->dt);
         if (is_error(rep->predict)) {
-            return discard(f, rep, &rep->predict);
+            return discard(f, &saved, rep, &rep->predict);
         }
-        ekf_count(&w.diag.steps);
+        ekf_count(&w->diag.steps);
         if ((sample->valid & ATT_HAS_ACCEL) != 0u) {
             last = &rep->accel;
-            rep->accel = att_stage_accel(&w, s, sample->accel);
+            rep->accel = att_stage_accel(w, s, sample->accel);
             if (is_error(rep->accel)) {
-                return discard(f, rep, &rep->accel);
+                return discard(f, &saved, rep, &rep->accel);
             }
         }
         if ((sample->valid & ATT_HAS_MAG) != 0u) {
             last = &rep->mag;
-            rep->mag = att_stage_mag(&w, s, sample->mag);
+            rep->mag = att_stage_mag(w, s, sample->mag);
             if (is_error(rep->mag)) {
-                return discard(f, rep, &rep->mag);
+                return discard(f, &saved, rep, &rep->mag);
             }
         }
     }
-    if (commit(f, &w) != EKF_OK) {
+    if (commit(f, &saved) != EKF_OK) {
         report_all(rep, EKF_SKIPPED);
         *last = EKF_ERR_NUMERIC;
         return EKF_ERR_NUMERIC;

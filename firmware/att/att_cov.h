@@ -7,11 +7,14 @@
  *
  * Indices are the state indices of att_defs.h (0 .. ATT_N-1); callers pass valid ones.
  * Every operation keeps P exactly symmetric. Which operations keep P positive
- * (semi-)definite is stated with each; the guard (att_cov_ensure_pd) runs once at the end of
+ * (semi-)definite is stated with each; the guard (att_cov_guard) runs once at the end of
  * every public call of the filter (docs/derivation.md, "Covariance bounds").
  *
- * Implementation (ekf_config.h): ATT_COV_REFERENCE, full row-major 9x9 on the generic
- * routines of ekf.h and the generated att_gen_cov_propagate (att_cov_ref.c).
+ * Implementations (ekf_config.h): ATT_COV_GENERATED (the default for float and double),
+ * packed symmetric storage with generated straight-line kernels (att_cov_gen.c, generator
+ * host_tools/attekf/codegen/covgen.py); ATT_COV_REFERENCE (-DATT_COV_REFERENCE=1, and the
+ * fixed-point build), full row-major 9x9 on the generic routines of ekf.h and the generated
+ * propagations att_gen_cov_propagate_f1/_f2 (att_cov_ref.c): the same filter unoptimised.
  */
 #ifndef ATT_COV_H
 #define ATT_COV_H
@@ -30,6 +33,12 @@ extern "C" {
 typedef struct {
     ekf_scalar_t P[ATT_N * ATT_N]; /* row-major, exactly symmetric */
 } att_cov_t;
+#elif defined(ATT_COV_GENERATED)
+/* Entries of the lower triangle. */
+#define ATT_COV_NP (ATT_N * (ATT_N + 1) / 2)
+typedef struct {
+    ekf_scalar_t p[ATT_COV_NP]; /* P_ij (i >= j) at p[i (i + 1) / 2 + j] */
+} att_cov_t;
 #else
 #error "att_cov.h: no covariance implementation selected (see ekf_config.h)"
 #endif
@@ -44,16 +53,24 @@ ekf_scalar_t att_cov_get(const att_cov_t *c, int i, int j);
 ekf_scalar_t att_cov_var(const att_cov_t *c, int i);
 /* All of P, row-major, in the filter's scalar type. */
 void att_cov_to_full(const att_cov_t *c, ekf_scalar_t P[ATT_N * ATT_N]);
+/* P from a row-major symmetric matrix (its lower triangle is read, and mirrored). */
+void att_cov_from_full(att_cov_t *c, const ekf_scalar_t P[ATT_N * ATT_N]);
 
 /* ---- prediction ---- */
 
-/* P <- F P F^T with F = I + D, d: the values of D in the order of att_gen_f_pattern, all
- * finite (the caller checks). A congruence. */
-void att_cov_propagate(att_cov_t *c, const ekf_scalar_t d[ATT_GEN_F_NNZ]);
-/* The first-order variance of each angle's increment over the step, var[i] =
- * (D P D^T)_ii for the rows ATT_PHI + i (i = 0, 1, 2) of D (d as for att_cov_propagate),
- * evaluated on P before the propagation; >= 0 (rounding below zero is returned as 0). */
-void att_cov_increment_var(const att_cov_t *c, const ekf_scalar_t d[ATT_GEN_F_NNZ], ekf_scalar_t var[3]);
+/* The covariance part of the prediction:
+ *     P <- F P F^T + G diag(var) G^T,   F = F2 F1,  G = F2 [I; 0; 0] = [I; 0; W+],
+ * F1 = I + D1, F2 = I + D2 the factors of the transition Jacobian, d1 and d2 their values
+ * in the order of att_gen_f1_pattern and att_gen_f2_pattern (att_gen_transition_factors;
+ * an implementation may take the entries that are structural constants, 1 and -1 in D2, as
+ * such); var[j] >= 0 the body-rate noise per axis (as for att_cov_add_rate_noise). A
+ * congruence plus a positive semi-definite term. Also returns the first-order variance of
+ * each angle's increment over the step, inc_var[i] = (D P D^T)_ii for the rows ATT_PHI + i
+ * (i = 0, 1, 2) of D = F - I (they are D1's rows), evaluated on P before the prediction;
+ * >= 0 (rounding below zero is returned as 0). EKF_OK, or EKF_ERR_NUMERIC with P and
+ * inc_var unchanged if a value of d1 or d2 is not finite. */
+ekf_status_t att_cov_predict(att_cov_t *c, const ekf_scalar_t d1[ATT_GEN_F1_NNZ], const ekf_scalar_t d2[ATT_GEN_F2_NNZ],
+                     const ekf_scalar_t var[3], ekf_scalar_t inc_var[3]);
 /* P += G diag(var) G^T for the body-rate noise input (var[j] >= 0 per body axis j),
  * G = [I; 0; g] with g the Euler-rate block (row-major 3x3). Adds a positive
  * semi-definite matrix. */
@@ -108,6 +125,11 @@ int att_cov_is_pd(const att_cov_t *c, ekf_scalar_t rel_margin);
  * (ekf_cov_ensure_pd); afterwards every P_ii >= var_floor. Returns the number of repair
  * rounds, 0 if P passed, -1 with P unchanged if P has a non-finite entry. */
 int att_cov_ensure_pd(att_cov_t *c, ekf_scalar_t rel_margin, ekf_scalar_t var_floor);
+/* The guard at the end of every public call of the filter: att_cov_floor_diag(c, var_floor),
+ * then att_cov_ensure_pd(c, rel_margin, var_floor). Returns the number of repair rounds, 0 if
+ * P passed, -1 if a variance is not finite or negative beyond rounding or an entry is not
+ * finite (P may have been floored; the caller refuses the call). */
+int att_cov_guard(att_cov_t *c, ekf_scalar_t rel_margin, ekf_scalar_t var_floor);
 
 #ifdef __cplusplus
 }

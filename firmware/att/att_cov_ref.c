@@ -1,10 +1,13 @@
 /*
  * att_cov_ref.c - reference implementation of att_cov.h: P full row-major 9x9, on the
  * generic routines of ekf.h (ekf_update_scalar, ekf_cov_limit_variance, ekf_cov_is_pd,
- * ekf_cov_ensure_pd) and the generated att_gen_cov_propagate. The same filter without
- * any storage optimisation.
+ * ekf_cov_ensure_pd) and the generated att_gen_cov_propagate_f1/_f2 (ekf_cov_propagate
+ * unrolled, bit for bit). The same filter without any storage optimisation; selected with
+ * -DATT_COV_REFERENCE=1 (ekf_config.h) and by the fixed-point build.
  */
 #include "att_cov.h"
+
+#if defined(ATT_COV_REFERENCE)
 
 #include <stddef.h>
 
@@ -33,41 +36,57 @@ void att_cov_to_full(const att_cov_t *c, ekf_scalar_t P[ATT_N * ATT_N])
     }
 }
 
-void att_cov_propagate(att_cov_t *c, const ekf_scalar_t d[ATT_GEN_F_NNZ])
+void att_cov_from_full(att_cov_t *c, const ekf_scalar_t P[ATT_N * ATT_N])
 {
-    /* generated for F's fixed pattern, bit-identical to ekf_cov_propagate with
-     * att_gen_f_pattern (tests/c/test_att_propagate.c) */
-    att_gen_cov_propagate(c->P, d);
+    int i, j;
+    for (i = 0; i < ATT_N; ++i) {
+        for (j = 0; j <= i; ++j) {
+            PIJ(c, i, j) = PIJ(c, j, i) = P[i * ATT_N + j];
+        }
+    }
 }
 
-void att_cov_increment_var(const att_cov_t *c, const ekf_scalar_t d[ATT_GEN_F_NNZ], ekf_scalar_t var[3])
+ekf_status_t att_cov_predict(att_cov_t *c, const ekf_scalar_t d1[ATT_GEN_F1_NNZ],
+                             const ekf_scalar_t d2[ATT_GEN_F2_NNZ], const ekf_scalar_t var[3],
+                             ekf_scalar_t inc_var[3])
 {
     int k = 0, i;
-    for (i = 0; i < 3; ++i) {
-        var[i] = EKF_C(0);
+    if (!ekf_all_finite(d1, ATT_GEN_F1_NNZ) || !ekf_all_finite(d2, ATT_GEN_F2_NNZ)) {
+        return EKF_ERR_NUMERIC;
     }
-    /* the pattern is sorted by row: the quadratic form of each angle row of D over the
-     * entries of P its columns select (7, 4 and 6 entries) */
-    while (k < ATT_GEN_F_NNZ && att_gen_f_pattern[k].row <= ATT_PSI) {
-        const int row = att_gen_f_pattern[k].row;
+    for (i = 0; i < 3; ++i) {
+        inc_var[i] = EKF_C(0);
+    }
+    /* the increment variances: the quadratic form of each row of D1 (sorted by row) over
+     * the entries of P its columns select (7, 4 and 6 entries) */
+    while (k < ATT_GEN_F1_NNZ) {
+        const int row = att_gen_f1_pattern[k].row;
         int end = k, a, b;
         ekf_scalar_t v = EKF_C(0);
-        while (end < ATT_GEN_F_NNZ && att_gen_f_pattern[end].row == row) {
+        while (end < ATT_GEN_F1_NNZ && att_gen_f1_pattern[end].row == row) {
             ++end;
         }
         for (a = k; a < end; ++a) {
-            const ekf_scalar_t *pa = &c->P[att_gen_f_pattern[a].col * ATT_N];
+            const ekf_scalar_t *pa = &c->P[att_gen_f1_pattern[a].col * ATT_N];
             ekf_scalar_t acc = EKF_C(0);
             for (b = k; b < end; ++b) {
-                acc = ekf_mac(acc, d[b], pa[att_gen_f_pattern[b].col]);
+                acc = ekf_mac(acc, d1[b], pa[att_gen_f1_pattern[b].col]);
             }
-            v = ekf_mac(v, d[a], acc);
+            v = ekf_mac(v, d1[a], acc);
         }
-        if (row >= ATT_PHI) {
-            var[row - ATT_PHI] = ekf_max(v, EKF_C(0));
+        if (row >= ATT_PHI && row <= ATT_PSI) {
+            inc_var[row - ATT_PHI] = ekf_max(v, EKF_C(0));
         }
         k = end;
     }
+    /* F2 (F1 P F1^T + diag(var, 0)) F2^T: G diag(var) G^T = F2 diag(var, 0) F2^T. Each factor
+     * generated for its pattern, bit-identical to ekf_cov_propagate (test_att_propagate.c). */
+    att_gen_cov_propagate_f1(c->P, d1);
+    for (i = 0; i < 3; ++i) {
+        PIJ(c, ATT_P + i, ATT_P + i) = ekf_add(PIJ(c, ATT_P + i, ATT_P + i), var[i]);
+    }
+    att_gen_cov_propagate_f2(c->P, d2);
+    return EKF_OK;
 }
 
 void att_cov_add_rate_noise(att_cov_t *c, const ekf_scalar_t g[9], const ekf_scalar_t var[3])
@@ -199,3 +218,16 @@ int att_cov_ensure_pd(att_cov_t *c, ekf_scalar_t rel_margin, ekf_scalar_t var_fl
     ekf_scalar_t ldl[ATT_N * (ATT_N + 1) / 2];
     return ekf_cov_ensure_pd(c->P, ATT_N, rel_margin, var_floor, ldl);
 }
+
+int att_cov_guard(att_cov_t *c, ekf_scalar_t rel_margin, ekf_scalar_t var_floor)
+{
+    if (att_cov_floor_diag(c, var_floor) != 0) {
+        return -1;
+    }
+    return att_cov_ensure_pd(c, rel_margin, var_floor);
+}
+
+#else
+/* (ISO C wants a declaration in every translation unit) */
+typedef int att_cov_ref_not_selected;
+#endif /* ATT_COV_REFERENCE */

@@ -49,6 +49,10 @@ const ekf_nz_t att_gen_f_pattern[ATT_GEN_F_NNZ] = {
     {ATT_PSID, ATT_PSID}
 };
 
+const ekf_nz_t att_gen_f1_pattern[ATT_GEN_F1_NNZ] = {{ATT_PHI, ATT_P}, {ATT_PHI, ATT_Q}, {ATT_PHI, ATT_R}, {ATT_PHI, ATT_PHI}, {ATT_PHI, ATT_THETA}, {ATT_PHI, ATT_PHID}, {ATT_PHI, ATT_THETAD}, {ATT_THETA, ATT_Q}, {ATT_THETA, ATT_R}, {ATT_THETA, ATT_PHI}, {ATT_THETA, ATT_PHID}, {ATT_PSI, ATT_Q}, {ATT_PSI, ATT_R}, {ATT_PSI, ATT_PHI}, {ATT_PSI, ATT_THETA}, {ATT_PSI, ATT_PHID}, {ATT_PSI, ATT_THETAD}};
+
+const ekf_nz_t att_gen_f2_pattern[ATT_GEN_F2_NNZ] = {{ATT_PHID, ATT_P}, {ATT_PHID, ATT_Q}, {ATT_PHID, ATT_R}, {ATT_PHID, ATT_PHI}, {ATT_PHID, ATT_THETA}, {ATT_PHID, ATT_PHID}, {ATT_THETAD, ATT_Q}, {ATT_THETAD, ATT_R}, {ATT_THETAD, ATT_PHI}, {ATT_THETAD, ATT_THETAD}, {ATT_PSID, ATT_Q}, {ATT_PSID, ATT_R}, {ATT_PSID, ATT_PHI}, {ATT_PSID, ATT_THETA}, {ATT_PSID, ATT_PSID}};
+
 void att_gen_cov_propagate(ekf_scalar_t P[ATT_N * ATT_N], const ekf_scalar_t d[ATT_GEN_F_NNZ])
 {
     ekf_scalar_t a[6][ATT_N]; /* rows ATT_PHI, ATT_THETA, ATT_PSI, ATT_PHID, ATT_THETAD, ATT_PSID of A = F P */
@@ -98,6 +102,86 @@ void att_gen_cov_propagate(ekf_scalar_t P[ATT_N * ATT_N], const ekf_scalar_t d[A
         }
         if (j <= 5) {
             v = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ai[ATT_PSID], d[31], ai[ATT_P]), d[32], ai[ATT_Q]), d[33], ai[ATT_R]), d[34], ai[ATT_PHI]), d[35], ai[ATT_THETA]), d[36], ai[ATT_PHID]), d[37], ai[ATT_THETAD]), d[38], ai[ATT_PSID]);
+            pr[ATT_PSID] = v;
+            P[ATT_PSID * ATT_N + ri] = v;
+        }
+    }
+}
+
+void att_gen_cov_propagate_f1(ekf_scalar_t P[ATT_N * ATT_N], const ekf_scalar_t d[ATT_GEN_F1_NNZ])
+{
+    ekf_scalar_t a[3][ATT_N]; /* rows ATT_PHI, ATT_THETA, ATT_PSI of A = F P */
+    int j;
+    for (j = 0; j < ATT_N; ++j) {
+        const ekf_scalar_t *pj = &P[j * ATT_N]; /* column j of P (symmetric) */
+        a[0][j] = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(pj[ATT_PHI], d[0], pj[ATT_P]), d[1], pj[ATT_Q]), d[2], pj[ATT_R]), d[3], pj[ATT_PHI]), d[4], pj[ATT_THETA]), d[5], pj[ATT_PHID]), d[6], pj[ATT_THETAD]);
+        a[1][j] = ekf_mac(ekf_mac(ekf_mac(ekf_mac(pj[ATT_THETA], d[7], pj[ATT_Q]), d[8], pj[ATT_R]), d[9], pj[ATT_PHI]), d[10], pj[ATT_PHID]);
+        a[2][j] = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(pj[ATT_PSI], d[11], pj[ATT_Q]), d[12], pj[ATT_R]), d[13], pj[ATT_PHI]), d[14], pj[ATT_THETA]), d[15], pj[ATT_PHID]), d[16], pj[ATT_THETAD]);
+    }
+    static const uint8_t rows[3] = {ATT_PHI, ATT_THETA, ATT_PSI};
+    for (j = 0; j < 3; ++j) {
+        const ekf_scalar_t *ai = a[j];
+        const int ri = rows[j];
+        ekf_scalar_t *pr = &P[ri * ATT_N];
+        ekf_scalar_t v;
+        pr[ATT_P] = P[ATT_P * ATT_N + ri] = ai[ATT_P];
+        pr[ATT_Q] = P[ATT_Q * ATT_N + ri] = ai[ATT_Q];
+        pr[ATT_R] = P[ATT_R * ATT_N + ri] = ai[ATT_R];
+        pr[ATT_PHID] = P[ATT_PHID * ATT_N + ri] = ai[ATT_PHID];
+        pr[ATT_THETAD] = P[ATT_THETAD * ATT_N + ri] = ai[ATT_THETAD];
+        pr[ATT_PSID] = P[ATT_PSID * ATT_N + ri] = ai[ATT_PSID];
+        if (j <= 0) {
+            v = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ai[ATT_PHI], d[0], ai[ATT_P]), d[1], ai[ATT_Q]), d[2], ai[ATT_R]), d[3], ai[ATT_PHI]), d[4], ai[ATT_THETA]), d[5], ai[ATT_PHID]), d[6], ai[ATT_THETAD]);
+            pr[ATT_PHI] = v;
+            P[ATT_PHI * ATT_N + ri] = v;
+        }
+        if (j <= 1) {
+            v = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ai[ATT_THETA], d[7], ai[ATT_Q]), d[8], ai[ATT_R]), d[9], ai[ATT_PHI]), d[10], ai[ATT_PHID]);
+            pr[ATT_THETA] = v;
+            P[ATT_THETA * ATT_N + ri] = v;
+        }
+        if (j <= 2) {
+            v = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ai[ATT_PSI], d[11], ai[ATT_Q]), d[12], ai[ATT_R]), d[13], ai[ATT_PHI]), d[14], ai[ATT_THETA]), d[15], ai[ATT_PHID]), d[16], ai[ATT_THETAD]);
+            pr[ATT_PSI] = v;
+            P[ATT_PSI * ATT_N + ri] = v;
+        }
+    }
+}
+
+void att_gen_cov_propagate_f2(ekf_scalar_t P[ATT_N * ATT_N], const ekf_scalar_t d[ATT_GEN_F2_NNZ])
+{
+    ekf_scalar_t a[3][ATT_N]; /* rows ATT_PHID, ATT_THETAD, ATT_PSID of A = F P */
+    int j;
+    for (j = 0; j < ATT_N; ++j) {
+        const ekf_scalar_t *pj = &P[j * ATT_N]; /* column j of P (symmetric) */
+        a[0][j] = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(pj[ATT_PHID], d[0], pj[ATT_P]), d[1], pj[ATT_Q]), d[2], pj[ATT_R]), d[3], pj[ATT_PHI]), d[4], pj[ATT_THETA]), d[5], pj[ATT_PHID]);
+        a[1][j] = ekf_mac(ekf_mac(ekf_mac(ekf_mac(pj[ATT_THETAD], d[6], pj[ATT_Q]), d[7], pj[ATT_R]), d[8], pj[ATT_PHI]), d[9], pj[ATT_THETAD]);
+        a[2][j] = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(pj[ATT_PSID], d[10], pj[ATT_Q]), d[11], pj[ATT_R]), d[12], pj[ATT_PHI]), d[13], pj[ATT_THETA]), d[14], pj[ATT_PSID]);
+    }
+    static const uint8_t rows[3] = {ATT_PHID, ATT_THETAD, ATT_PSID};
+    for (j = 0; j < 3; ++j) {
+        const ekf_scalar_t *ai = a[j];
+        const int ri = rows[j];
+        ekf_scalar_t *pr = &P[ri * ATT_N];
+        ekf_scalar_t v;
+        pr[ATT_P] = P[ATT_P * ATT_N + ri] = ai[ATT_P];
+        pr[ATT_Q] = P[ATT_Q * ATT_N + ri] = ai[ATT_Q];
+        pr[ATT_R] = P[ATT_R * ATT_N + ri] = ai[ATT_R];
+        pr[ATT_PHI] = P[ATT_PHI * ATT_N + ri] = ai[ATT_PHI];
+        pr[ATT_THETA] = P[ATT_THETA * ATT_N + ri] = ai[ATT_THETA];
+        pr[ATT_PSI] = P[ATT_PSI * ATT_N + ri] = ai[ATT_PSI];
+        if (j <= 0) {
+            v = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ai[ATT_PHID], d[0], ai[ATT_P]), d[1], ai[ATT_Q]), d[2], ai[ATT_R]), d[3], ai[ATT_PHI]), d[4], ai[ATT_THETA]), d[5], ai[ATT_PHID]);
+            pr[ATT_PHID] = v;
+            P[ATT_PHID * ATT_N + ri] = v;
+        }
+        if (j <= 1) {
+            v = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ai[ATT_THETAD], d[6], ai[ATT_Q]), d[7], ai[ATT_R]), d[8], ai[ATT_PHI]), d[9], ai[ATT_THETAD]);
+            pr[ATT_THETAD] = v;
+            P[ATT_THETAD * ATT_N + ri] = v;
+        }
+        if (j <= 2) {
+            v = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ai[ATT_PSID], d[10], ai[ATT_Q]), d[11], ai[ATT_R]), d[12], ai[ATT_PHI]), d[13], ai[ATT_THETA]), d[14], ai[ATT_PSID]);
             pr[ATT_PSID] = v;
             P[ATT_PSID * ATT_N + ri] = v;
         }
@@ -286,4 +370,63 @@ void att_gen_mag_level(const att_trig_t *t, const ekf_scalar_t m[3], ekf_scalar_
     out[0] = ekf_add(ekf_add(ekf_mul(mx, cth), ekf_mul(t0, sth)), ekf_mul(t1, sth));
     out[1] = ekf_sub(ekf_mul(my, cph), ekf_mul(mz, sph));
     out[2] = ekf_sub(ekf_add(ekf_mul(t0, cth), ekf_mul(t1, cth)), ekf_mul(mx, sth));
+}
+
+void att_gen_transition_factors(const att_trig_t *tm, const att_trig_t *t, const ekf_scalar_t x[ATT_N], ekf_scalar_t dt, ekf_scalar_t d1[ATT_GEN_F1_NNZ], ekf_scalar_t d2[ATT_GEN_F2_NNZ])
+{
+    const ekf_scalar_t sphm = tm->sphi;
+    const ekf_scalar_t cphm = tm->cphi;
+    const ekf_scalar_t sthm = tm->sth;
+    const ekf_scalar_t secthm = tm->secth;
+    const ekf_scalar_t sph = t->sphi;
+    const ekf_scalar_t cph = t->cphi;
+    const ekf_scalar_t sth = t->sth;
+    const ekf_scalar_t secth = t->secth;
+    const ekf_scalar_t q = x[ATT_Q];
+    const ekf_scalar_t r = x[ATT_R];
+    const ekf_scalar_t t0 = ekf_mul(secthm, ekf_sub(ekf_mul(q, cphm), ekf_mul(r, sphm)));
+    const ekf_scalar_t t1 = ekf_mul(secthm, secthm);
+    const ekf_scalar_t t2 = ekf_add(EKF_C(1), ekf_mul(ekf_mul(t1, sthm), sthm));
+    const ekf_scalar_t t3 = ekf_add(ekf_mul(r, cphm), ekf_mul(q, sphm));
+    const ekf_scalar_t t4 = ekf_mul(t1, sthm);
+    const ekf_scalar_t t5 = ekf_mul(secth, sph);
+    const ekf_scalar_t t6 = ekf_mul(secth, cph);
+    const ekf_scalar_t t7 = ekf_mul(secth, ekf_sub(ekf_mul(q, cph), ekf_mul(r, sph)));
+    const ekf_scalar_t t8 = ekf_mul(r, cph);
+    const ekf_scalar_t t9 = ekf_mul(secth, secth);
+    const ekf_scalar_t t10 = ekf_mul(ekf_mul(t9, sth), sth);
+    const ekf_scalar_t t11 = ekf_mul(q, sph);
+    const ekf_scalar_t t12 = ekf_add(t11, t8);
+    d1[0] = dt;
+    d1[1] = ekf_mul(ekf_mul(ekf_mul(secthm, sphm), sthm), dt);
+    d1[2] = ekf_mul(ekf_mul(ekf_mul(secthm, cphm), sthm), dt);
+    d1[3] = ekf_mul(ekf_mul(t0, sthm), dt);
+    d1[4] = ekf_mul(ekf_mul(t2, t3), dt);
+    d1[5] = ekf_mul(ekf_mul(ekf_mul(ekf_mul(t0, sthm), EKF_C(0.5)), dt), dt);
+    d1[6] = ekf_mul(ekf_mul(ekf_mul(ekf_mul(t2, t3), EKF_C(0.5)), dt), dt);
+    d1[7] = ekf_mul(cphm, dt);
+    d1[8] = ekf_neg(ekf_mul(sphm, dt));
+    d1[9] = ekf_neg(ekf_mul(t3, dt));
+    d1[10] = ekf_neg(ekf_mul(ekf_mul(ekf_mul(t3, EKF_C(0.5)), dt), dt));
+    d1[11] = ekf_mul(ekf_mul(secthm, sphm), dt);
+    d1[12] = ekf_mul(ekf_mul(secthm, cphm), dt);
+    d1[13] = ekf_mul(t0, dt);
+    d1[14] = ekf_mul(ekf_mul(t4, t3), dt);
+    d1[15] = ekf_mul(ekf_mul(ekf_mul(t0, EKF_C(0.5)), dt), dt);
+    d1[16] = ekf_mul(ekf_mul(ekf_mul(ekf_mul(t4, t3), EKF_C(0.5)), dt), dt);
+    d2[0] = EKF_C(1);
+    d2[1] = ekf_mul(t5, sth);
+    d2[2] = ekf_mul(t6, sth);
+    d2[3] = ekf_mul(t7, sth);
+    d2[4] = ekf_add(ekf_add(t12, ekf_mul(t10, t11)), ekf_mul(t10, t8));
+    d2[5] = ekf_neg(EKF_C(1));
+    d2[6] = cph;
+    d2[7] = ekf_neg(sph);
+    d2[8] = ekf_neg(t12);
+    d2[9] = ekf_neg(EKF_C(1));
+    d2[10] = t5;
+    d2[11] = t6;
+    d2[12] = t7;
+    d2[13] = ekf_mul(ekf_mul(t9, t12), sth);
+    d2[14] = ekf_neg(EKF_C(1));
 }

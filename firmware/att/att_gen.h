@@ -22,6 +22,16 @@ extern "C" {
 /* (row, column) of each entry of D, sorted by row: the pattern for ekf_cov_propagate. */
 extern const ekf_nz_t att_gen_f_pattern[ATT_GEN_F_NNZ];
 
+/* Number of structurally non-zero entries of D1 = F1 - I (the angle rows), and their
+ * (row, column), sorted by row (att_gen_transition_factors). */
+#define ATT_GEN_F1_NNZ 17
+extern const ekf_nz_t att_gen_f1_pattern[ATT_GEN_F1_NNZ];
+
+/* Number of structurally non-zero entries of D2 = F2 - I (the Euler-rate rows), and their
+ * (row, column), sorted by row (att_gen_transition_factors). */
+#define ATT_GEN_F2_NNZ 15
+extern const ekf_nz_t att_gen_f2_pattern[ATT_GEN_F2_NNZ];
+
 /*
  * P <- F P F^T, F = I + D, d: the values of D in the order of att_gen_f_pattern.
  * ekf_cov_propagate() unrolled for this pattern: the same operations in the same order
@@ -29,6 +39,22 @@ extern const ekf_nz_t att_gen_f_pattern[ATT_GEN_F_NNZ];
  * symmetric and stays so. d must be finite (the caller checks).
  */
 void att_gen_cov_propagate(ekf_scalar_t P[ATT_N * ATT_N], const ekf_scalar_t d[ATT_GEN_F_NNZ]);
+
+/*
+ * P <- F P F^T, F = I + D1, d: the values of D1 in the order of att_gen_f1_pattern.
+ * ekf_cov_propagate() unrolled for this pattern: the same operations in the same order
+ * (bit-identical result) without reading the pattern at run time. P must be exactly
+ * symmetric and stays so. d must be finite (the caller checks).
+ */
+void att_gen_cov_propagate_f1(ekf_scalar_t P[ATT_N * ATT_N], const ekf_scalar_t d[ATT_GEN_F1_NNZ]);
+
+/*
+ * P <- F P F^T, F = I + D2, d: the values of D2 in the order of att_gen_f2_pattern.
+ * ekf_cov_propagate() unrolled for this pattern: the same operations in the same order
+ * (bit-identical result) without reading the pattern at run time. P must be exactly
+ * symmetric and stays so. d must be finite (the caller checks).
+ */
+void att_gen_cov_propagate_f2(ekf_scalar_t P[ATT_N * ATT_N], const ekf_scalar_t d[ATT_GEN_F2_NNZ]);
 
 /*
  * Euler-angle rates (rad/s) from body rates w = (p, q, r) (rad/s): W(phi, theta) w.
@@ -73,6 +99,14 @@ void att_gen_accel_jacobian(const att_trig_t *t, ekf_scalar_t hj[6]);
  * dip = atan2(-out[2], |out[0..1]|). t: trigonometry of (phi, theta).
  */
 void att_gen_mag_level(const att_trig_t *t, const ekf_scalar_t m[3], ekf_scalar_t out[3]);
+
+/*
+ * F = F2 F1, F1 = I + D1, F2 = I + D2 (docs/derivation.md, "State Jacobian"): d1 the values
+ * of D1 (the angle rows of D) in the order of att_gen_f1_pattern, d2 those of D2 (the
+ * Euler-rate rows: W+ on the body rates, M+ on roll and pitch, -1 on the rate itself) in
+ * the order of att_gen_f2_pattern. Arguments as for att_gen_transition_jacobian.
+ */
+void att_gen_transition_factors(const att_trig_t *tm, const att_trig_t *t, const ekf_scalar_t x[ATT_N], ekf_scalar_t dt, ekf_scalar_t d1[ATT_GEN_F1_NNZ], ekf_scalar_t d2[ATT_GEN_F2_NNZ]);
 
 #ifdef __cplusplus
 }

@@ -28,6 +28,10 @@ enum { ATT_SENSOR_GYRO = 0, ATT_SENSOR_ACCEL = 1, ATT_SENSOR_MAG = 2 };
 
 /* ---- helpers (att.c) ---- */
 
+/* *dst = *src byte for byte (padding included, so that a restored filter compares equal):
+ * the one copy of the variables each call takes before its stages run. */
+void att_vars_copy(att_vars_t *dst, const att_vars_t *src);
+
 /* |vec|. */
 ekf_scalar_t att_norm3(const ekf_scalar_t vec[3]);
 /* ATT_FLAG_GIMBAL_LOCK from the pitch. */

@@ -17,10 +17,8 @@ int att_trig(ekf_scalar_t phi, ekf_scalar_t theta, ekf_scalar_t theta_limit, att
         theta = ekf_neg(theta_limit);
         clamped = 1;
     }
-    t->sphi = ekf_sin(phi);
-    t->cphi = ekf_cos(phi);
-    t->sth = ekf_sin(theta);
-    t->cth = ekf_cos(theta);
+    ekf_sincos(phi, &t->sphi, &t->cphi);
+    ekf_sincos(theta, &t->sth, &t->cth);
     /* |theta| <= theta_limit < pi/2, so cth >= cos(theta_limit) > 0 */
     t->secth = ekf_div(EKF_C(1), t->cth);
     return clamped;
@@ -74,9 +72,10 @@ int att_model_normalise(ekf_scalar_t x[ATT_N])
 void att_model_euler_to_quat(ekf_scalar_t phi, ekf_scalar_t theta, ekf_scalar_t psi, ekf_scalar_t q[4])
 {
     const ekf_scalar_t half = EKF_C(0.5);
-    const ekf_scalar_t cr = ekf_cos(ekf_mul(phi, half)), sr = ekf_sin(ekf_mul(phi, half));
-    const ekf_scalar_t cp = ekf_cos(ekf_mul(theta, half)), sp = ekf_sin(ekf_mul(theta, half));
-    const ekf_scalar_t cy = ekf_cos(ekf_mul(psi, half)), sy = ekf_sin(ekf_mul(psi, half));
+    ekf_scalar_t cr, sr, cp, sp, cy, sy;
+    ekf_sincos(ekf_mul(phi, half), &sr, &cr);
+    ekf_sincos(ekf_mul(theta, half), &sp, &cp);
+    ekf_sincos(ekf_mul(psi, half), &sy, &cy);
     /* q = qz(psi) * qy(theta) * qx(phi) */
     q[0] = ekf_add(ekf_mul(ekf_mul(cy, cp), cr), ekf_mul(ekf_mul(sy, sp), sr));
     q[1] = ekf_sub(ekf_mul(ekf_mul(cy, cp), sr), ekf_mul(ekf_mul(sy, sp), cr));

@@ -79,8 +79,8 @@ static void accel_lp_turn(att_vars_t *v, ekf_scalar_t dt)
 ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scalar_t dt)
 {
     ekf_scalar_t xn[ATT_N];
-    ekf_scalar_t d[ATT_GEN_F_NNZ];
-    ekf_scalar_t g[9], inc_var[3];
+    ekf_scalar_t d1[ATT_GEN_F1_NNZ], d2[ATT_GEN_F2_NNZ];
+    ekf_scalar_t inc_var[3];
     att_trig_t tm, tn;
     int i;
 
@@ -88,20 +88,17 @@ ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scala
     if (!ekf_all_finite(xn, ATT_N)) {
         return EKF_ERR_NUMERIC;
     }
-    att_gen_transition_jacobian(&tm, &tn, v->x, dt, d);
-    if (!ekf_all_finite(d, ATT_GEN_F_NNZ)) {
-        return EKF_ERR_NUMERIC;
-    }
-    att_cov_increment_var(&v->cov, d, inc_var);
-    att_cov_propagate(&v->cov, d);
-
-    /* Q = G diag(rate_walk^2 dt) G^T + angle random walk + the discrete kinematics' own
-     * error: independent, euler_rate_rel of the variance of each angle's increment and of
-     * each Euler rate (docs/derivation.md, "Conditioning") */
-    att_gen_noise_jacobian(&tn, g);
+    /* F = F2 F1 (docs/derivation.md, "State Jacobian") */
+    att_gen_transition_factors(&tm, &tn, v->x, dt, d1, d2);
+    /* F P F^T + Q, Q = G diag(rate_walk^2 dt) G^T (with the propagation; refused if the
+     * Jacobian is not finite) + angle random walk + the discrete kinematics' own error:
+     * independent, euler_rate_rel of the variance of each angle's increment and of each
+     * Euler rate (docs/derivation.md, "Conditioning") */
     {
         const ekf_scalar_t q = ekf_mul(ekf_sq(s->rate_walk), dt), var[3] = {q, q, q};
-        att_cov_add_rate_noise(&v->cov, g, var);
+        if (att_cov_predict(&v->cov, d1, d2, var, inc_var) != EKF_OK) {
+            return EKF_ERR_NUMERIC;
+        }
     }
     att_cov_add_diag(&v->cov, ATT_PHI, 3, ekf_mul(ekf_sq(s->angle_walk), dt));
     for (i = 0; i < 3; ++i) {

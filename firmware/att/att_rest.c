@@ -46,11 +46,13 @@ int att_rest_update(att_rest_t *r, const att_rest_settings_t *s, const ekf_scala
         }
         r->primed = 1u;
     }
-    /* first-order low-pass, gain dt / (tau + dt) (stable for any dt) */
+    /* first-order low-pass, gain dt / (tau + dt) (stable for any dt); an axis that reads
+     * exactly zero (a noise-free or quantised sensor at rest) decays to exactly zero rather
+     * than to a subnormal number (ekf_flush_tiny) */
     k = ekf_div(dt, ekf_add(s->rest_tau, dt));
     for (i = 0; i < 3; ++i) {
-        r->gyro_lp[i] = ekf_mac(r->gyro_lp[i], k, ekf_sub(gyro[i], r->gyro_lp[i]));
-        r->acc_lp[i] = ekf_mac(r->acc_lp[i], k, ekf_sub(accel[i], r->acc_lp[i]));
+        r->gyro_lp[i] = ekf_flush_tiny(ekf_mac(r->gyro_lp[i], k, ekf_sub(gyro[i], r->gyro_lp[i])));
+        r->acc_lp[i] = ekf_flush_tiny(ekf_mac(r->acc_lp[i], k, ekf_sub(accel[i], r->acc_lp[i])));
     }
     still = sq_dist3(r->gyro_lp, zero) < g2 && sq_dist3(gyro, r->gyro_lp) < g2 &&
             sq_dist3(accel, r->acc_lp) < ekf_sq(s->rest_accel);
@@ -70,7 +72,7 @@ int att_rest_update(att_rest_t *r, const att_rest_settings_t *s, const ekf_scala
     r->bias_time = ekf_min(ekf_add(r->bias_time, dt), s->bias_tau);
     w = ekf_div(dt, r->bias_time);
     for (i = 0; i < 3; ++i) {
-        const ekf_scalar_t b = ekf_mac(r->bias[i], w, ekf_sub(gyro[i], r->bias[i]));
+        const ekf_scalar_t b = ekf_flush_tiny(ekf_mac(r->bias[i], w, ekf_sub(gyro[i], r->bias[i])));
         r->bias[i] = ekf_max(ekf_neg(s->bias_max), ekf_min(s->bias_max, b));
     }
     return 1;

@@ -12,10 +12,8 @@
  * sin and cos, never sec(theta), which is left at zero. */
 static void meas_trig(const att_vars_t *v, att_trig_t *t)
 {
-    t->sphi = ekf_sin(v->x[ATT_PHI]);
-    t->cphi = ekf_cos(v->x[ATT_PHI]);
-    t->sth = ekf_sin(v->x[ATT_THETA]);
-    t->cth = ekf_cos(v->x[ATT_THETA]);
+    ekf_sincos(v->x[ATT_PHI], &t->sphi, &t->cphi);
+    ekf_sincos(v->x[ATT_THETA], &t->sth, &t->cth);
     t->secth = EKF_C(0);
 }
 
@@ -242,9 +240,11 @@ ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_s
  * per reference, not per sample (|dip| is capped at 84 deg, cos >= 0.1). */
 void att_set_mag_reference(att_vars_t *v, ekf_scalar_t norm, ekf_scalar_t dip)
 {
+    ekf_scalar_t sd, cd;
     v->mag_ref_norm = norm;
     v->mag_ref_dip = dip;
-    v->mag_tan2_dip = ekf_sq(ekf_div(ekf_sin(dip), ekf_max(ekf_cos(dip), EKF_C(0.1))));
+    ekf_sincos(dip, &sd, &cd);
+    v->mag_tan2_dip = ekf_sq(ekf_div(sd, ekf_max(cd, EKF_C(0.1))));
 }
 
 ekf_scalar_t att_mag_heading(const att_settings_t *s, const ekf_scalar_t lev[3])

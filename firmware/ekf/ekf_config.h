@@ -46,11 +46,21 @@ extern "C" {
 #endif
 
 /* Covariance implementation of the attitude filter (firmware/att/att_cov.h; exactly one):
+ *   ATT_COV_GENERATED  packed symmetric P (45 entries) with generated straight-line kernels
+ *                      (att_cov_gen.c): the default for float and double.
  *   ATT_COV_REFERENCE  full row-major 9x9 P on the generic routines of ekf.h
- *                      (att_cov_ref.c): the only implementation so far, the default.
+ *                      (att_cov_ref.c): the same filter unoptimised (-DATT_COV_REFERENCE=1),
+ *                      and the fixed-point build's.
  */
-#if !defined(ATT_COV_REFERENCE)
+#if defined(ATT_COV_REFERENCE) && defined(ATT_COV_GENERATED)
+#error "ekf_config.h: define at most one of ATT_COV_REFERENCE, ATT_COV_GENERATED"
+#endif
+#if !defined(ATT_COV_REFERENCE) && !defined(ATT_COV_GENERATED)
+#if defined(EKF_SCALAR_FIXED)
 #define ATT_COV_REFERENCE 1
+#else
+#define ATT_COV_GENERATED 1
+#endif
 #endif
 
 /* Largest state dimension any generic routine must handle. Sizes two scratch vectors on

@@ -1,11 +1,35 @@
 /*
  * ekf_math.c - single-precision sin, cos, atan2 and software sqrt with stated error bounds
- * (ekf_math.h says which, and why the C library's are not used in the float build).
+ * (ekf_math.h says which, and why the C library's are not used in the float build), and the
+ * out-of-range part of ekf_wrap_pi for every scalar type (ekf_scalar.h).
  */
 #include "ekf_math.h"
 
 #include <stdint.h>
 #include <string.h>
+
+#include "ekf_scalar.h"
+
+/* ---- angle wrap (every scalar type; ekf_scalar.h inlines the in-range test) ----------- */
+
+/* a - 2 pi floor((a + pi) / 2 pi), then one correction step for the rounding of that
+ * product, then a clamp (for inputs so large that the reduction is no longer exact in the
+ * scalar's precision, the result is still an angle in range, though not the exact residue). */
+ekf_scalar_t ekf_wrap_pi_far(ekf_scalar_t a)
+{
+    const ekf_scalar_t turns = ekf_floor(ekf_div(ekf_add(a, EKF_PI), EKF_TWO_PI));
+    a = ekf_sub(a, ekf_mul(turns, EKF_TWO_PI));
+    if (a >= EKF_PI) {
+        a = ekf_sub(a, EKF_TWO_PI);
+    } else if (a < ekf_neg(EKF_PI)) {
+        a = ekf_add(a, EKF_TWO_PI);
+    }
+    a = ekf_clamp(a, ekf_neg(EKF_PI), EKF_PI);
+    if (a >= EKF_PI) {
+        a = ekf_neg(EKF_PI);
+    }
+    return a;
+}
 
 static uint32_t bits_of(float x)
 {

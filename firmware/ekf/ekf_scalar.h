@@ -9,7 +9,8 @@
  *     representation is an arithmetic type with a monotonic encoding;
  *   - trigonometry, square root, floor and finiteness go through the functions below: no other
  *     libm call appears in the library, and nothing is promoted to double by accident
- *     (the project builds with -Wdouble-promotion -Werror).
+ *     (the project builds with -Wdouble-promotion -Werror); sin and cos of the same angle
+ *     through ekf_sincos (one argument reduction for both).
  * Conversion at the API boundary: ekf_from_float / ekf_to_float (ekf_from_double /
  * ekf_to_double for host code and tests; ekf_from_int for counts). Never cast a scalar
  * with (float) or (ekf_scalar_t): in the fixed-point build that reinterprets the number.
@@ -39,6 +40,11 @@ typedef double ekf_scalar_t;
 static inline ekf_scalar_t ekf_sqrt(ekf_scalar_t a) { return sqrt(a); }
 static inline ekf_scalar_t ekf_sin(ekf_scalar_t a) { return sin(a); }
 static inline ekf_scalar_t ekf_cos(ekf_scalar_t a) { return cos(a); }
+static inline void ekf_sincos(ekf_scalar_t a, ekf_scalar_t *s, ekf_scalar_t *c)
+{
+    *s = sin(a);
+    *c = cos(a);
+}
 static inline ekf_scalar_t ekf_atan2(ekf_scalar_t y, ekf_scalar_t x) { return atan2(y, x); }
 static inline ekf_scalar_t ekf_abs(ekf_scalar_t a) { return fabs(a); }
 static inline ekf_scalar_t ekf_floor(ekf_scalar_t a) { return floor(a); }
@@ -55,8 +61,22 @@ typedef float ekf_scalar_t;
 #define EKF_SCALAR_ABS_EPS EKF_C(0)
 
 static inline ekf_scalar_t ekf_sqrt(ekf_scalar_t a) { return ekf_sqrtf(a); }
-static inline ekf_scalar_t ekf_sin(ekf_scalar_t a) { return ekf_sinf(a); }
-static inline ekf_scalar_t ekf_cos(ekf_scalar_t a) { return ekf_cosf(a); }
+static inline void ekf_sincos(ekf_scalar_t a, ekf_scalar_t *s, ekf_scalar_t *c) { ekf_sincosf(a, s, c); }
+/* sin and cos alone are ekf_sincosf's outputs (bit-identical to ekf_sinf and ekf_cosf): the
+ * filter needs both of most angles, and one function in the image instead of three saves
+ * 640 bytes of flash; a lone sin or cos costs about 10 instructions more. */
+static inline ekf_scalar_t ekf_sin(ekf_scalar_t a)
+{
+    float s, c;
+    ekf_sincosf(a, &s, &c);
+    return s;
+}
+static inline ekf_scalar_t ekf_cos(ekf_scalar_t a)
+{
+    float s, c;
+    ekf_sincosf(a, &s, &c);
+    return c;
+}
 static inline ekf_scalar_t ekf_atan2(ekf_scalar_t y, ekf_scalar_t x) { return ekf_atan2f(y, x); }
 static inline ekf_scalar_t ekf_abs(ekf_scalar_t a) { return fabsf(a); }
 static inline ekf_scalar_t ekf_floor(ekf_scalar_t a) { return floorf(a); }
@@ -81,6 +101,11 @@ typedef ekf_fx_t ekf_scalar_t;
 static inline ekf_scalar_t ekf_sqrt(ekf_scalar_t a) { return ekf_fx_sqrt(a); }
 static inline ekf_scalar_t ekf_sin(ekf_scalar_t a) { return ekf_fx_sin(a); }
 static inline ekf_scalar_t ekf_cos(ekf_scalar_t a) { return ekf_fx_cos(a); }
+static inline void ekf_sincos(ekf_scalar_t a, ekf_scalar_t *s, ekf_scalar_t *c)
+{
+    *s = ekf_fx_sin(a);
+    *c = ekf_fx_cos(a);
+}
 static inline ekf_scalar_t ekf_atan2(ekf_scalar_t y, ekf_scalar_t x) { return ekf_fx_atan2(y, x); }
 static inline ekf_scalar_t ekf_abs(ekf_scalar_t a) { return ekf_fx_abs(a); }
 static inline ekf_scalar_t ekf_floor(ekf_scalar_t a) { return ekf_fx_floor(a); }
@@ -142,6 +167,19 @@ static inline uint32_t ekf_scalar_saturations(void) { return 0u; }
 static inline void ekf_scalar_saturations_reset(void) {}
 #endif
 
+/* v, or exactly 0 if |v| < EKF_SCALAR_TINY (1e-30 in the IEEE builds, far below any
+ * physical value in SI; nothing in fixed point, which has no subnormals). For quantities
+ * that decay geometrically towards zero, like a low-pass filter whose input is exactly zero:
+ * in IEEE arithmetic such a value never reaches zero but settles on a subnormal number
+ * (y - k y rounds back to y once k y is below half its spacing), and every later operation on
+ * it takes the slow path of an x86 FPU (docs/performance.md, "Subnormal numbers"). */
+#if defined(EKF_SCALAR_FIXED)
+#define EKF_SCALAR_TINY EKF_C(0)
+#else
+#define EKF_SCALAR_TINY EKF_C(1e-30)
+#endif
+static inline ekf_scalar_t ekf_flush_tiny(ekf_scalar_t v) { return (ekf_abs(v) < EKF_SCALAR_TINY) ? EKF_C(0) : v; }
+
 static inline ekf_scalar_t ekf_min(ekf_scalar_t a, ekf_scalar_t b) { return (a < b) ? a : b; }
 static inline ekf_scalar_t ekf_max(ekf_scalar_t a, ekf_scalar_t b) { return (a > b) ? a : b; }
 static inline ekf_scalar_t ekf_clamp(ekf_scalar_t a, ekf_scalar_t lo, ekf_scalar_t hi)
@@ -154,26 +192,16 @@ static inline ekf_scalar_t ekf_sq(ekf_scalar_t a) { return ekf_mul(a, a); }
 #define EKF_TWO_PI EKF_C(6.28318530717958647692)
 #define EKF_HALF_PI EKF_C(1.57079632679489661923)
 
-/* Angle wrapped into [-pi, pi) for any finite input: a - 2 pi floor((a + pi) / 2 pi), then
- * one correction step for the rounding of that product, then a clamp (for inputs so
- * large that the reduction is no longer exact in the scalar's precision, the result is
- * still an angle in range, though not the exact residue). */
+/* Angle wrapped into [-pi, pi) for any finite input. Inline only the test: an angle in
+ * range (what the filter nearly always has) costs two comparisons; ekf_wrap_pi_far
+ * (ekf_math.c) reduces the others. */
+ekf_scalar_t ekf_wrap_pi_far(ekf_scalar_t a);
+#if defined(__GNUC__)
+__attribute__((always_inline)) /* (GCC at -Os would keep a called copy per file) */
+#endif
 static inline ekf_scalar_t ekf_wrap_pi(ekf_scalar_t a)
 {
-    if (a >= EKF_PI || a < ekf_neg(EKF_PI)) {
-        const ekf_scalar_t turns = ekf_floor(ekf_div(ekf_add(a, EKF_PI), EKF_TWO_PI));
-        a = ekf_sub(a, ekf_mul(turns, EKF_TWO_PI));
-        if (a >= EKF_PI) {
-            a = ekf_sub(a, EKF_TWO_PI);
-        } else if (a < ekf_neg(EKF_PI)) {
-            a = ekf_add(a, EKF_TWO_PI);
-        }
-        a = ekf_clamp(a, ekf_neg(EKF_PI), EKF_PI);
-        if (a >= EKF_PI) {
-            a = ekf_neg(EKF_PI);
-        }
-    }
-    return a;
+    return (a >= EKF_PI || a < ekf_neg(EKF_PI)) ? ekf_wrap_pi_far(a) : a;
 }
 
 #ifdef __cplusplus

@@ -8,11 +8,16 @@
  * Cortex-M4 loads, branches, VDIV and VSQRT take more than one cycle.)
  *
  * Inputs: 30 s at 100 Hz of simulated motion with gyroscope, accelerometer and
- * magnetometer in every sample (tests/c/support/testsim.c, double precision, outside the
- * measured regions). For each sample after the alignment the full att_step is timed on
- * the filter, and the same stages (gyro update, predict, accelerometer update,
- * magnetometer update) are timed one by one on a copy of it; both must end in the same
- * state, bit for bit, or the benchmark fails.
+ * magnetometer in every sample (the benchmark recording, TS_BENCH_* of
+ * tests/c/support/testsim.h, double precision, outside the measured regions). For each
+ * sample after the alignment the full att_step is timed on the filter; the public stages
+ * (att_update_gyro, att_predict, att_update_accel, att_update_mag, each a whole call with
+ * its own guard and commit) one by one on a copy of it; and the parts of att_step one by
+ * one on a third copy, in att_step's order (att_internal.h): the saved copy of the
+ * variables (the commit's cost on the normal path), the rest detector, the gyroscope,
+ * prediction, accelerometer and magnetometer stages, the guard with the last finiteness
+ * check. All three must end in the same state, bit for bit, or the benchmark fails; what
+ * att_step spends beyond its parts (validation, the report) is printed as step_other.
  *
  * Stack: the stack below the caller is painted before each att_step and scanned after it.
  *
@@ -27,6 +32,8 @@
 #include <string.h>
 
 #include "att.h"
+#include "att_internal.h"
+#include "ekf_util.h"
 #include "target.h"
 #include "testsim.h"
 
@@ -100,21 +107,17 @@ static int check_calibration(uint32_t base)
     return insns == 2002u;
 }
 
-/* Simulated body rate, rad/s: a slow tumble with components of different frequencies, so
- * that every angle and rate takes many values. */
-static void motion(double t, double w[3])
-{
-    w[0] = 0.8 * sin(2.0 * 3.141592653589793 * 0.23 * t);
-    w[1] = 0.5 * sin(2.0 * 3.141592653589793 * 0.17 * t + 1.0);
-    w[2] = 0.6 * sin(2.0 * 3.141592653589793 * 0.11 * t + 2.0);
-}
-
 int main(int argc, char **argv)
 {
-    static att_ekf_t filter, staged;
+    static att_ekf_t filter, staged, parts;
+    static att_vars_t saved;
     static stat_t st_predict = {"predict", 0, 0, 0, 0}, st_gyro = {"update_gyro", 0, 0, 0, 0},
                   st_accel = {"update_accel", 0, 0, 0, 0}, st_mag = {"update_mag", 0, 0, 0, 0},
                   st_step = {"step", 0, 0, 0, 0}, st_stages = {"stages_sum", 0, 0, 0, 0};
+    static stat_t st_p_commit = {"part_commit", 0, 0, 0, 0}, st_p_rest = {"part_rest", 0, 0, 0, 0},
+                  st_p_gyro = {"part_gyro", 0, 0, 0, 0}, st_p_predict = {"part_predict", 0, 0, 0, 0},
+                  st_p_accel = {"part_accel", 0, 0, 0, 0}, st_p_mag = {"part_mag", 0, 0, 0, 0},
+                  st_p_guard = {"part_guard", 0, 0, 0, 0}, st_p_other = {"step_other", 0, 0, 0, 0};
     ts_sim_cfg_t cfg;
     ts_sim_t sim;
     uint32_t base, k, max_stack = 0u, mismatches = 0u, errors = 0u;
@@ -149,7 +152,7 @@ int main(int argc, char **argv)
         return 1;
     }
     ts_sim_default(&cfg);
-    ts_sim_init(&sim, &cfg, 12345u, 0.2, -0.1, 1.0);
+    ts_sim_init(&sim, &cfg, TS_BENCH_SEED, TS_BENCH_PHI, TS_BENCH_THETA, TS_BENCH_PSI);
 
     for (k = 0; k < samples; ++k) {
         static const double still[3] = {0.0, 0.0, 0.0};
@@ -158,9 +161,9 @@ int main(int argc, char **argv)
         att_step_report_t rep;
         ekf_status_t status;
         uint32_t t0, t1, used;
-        uint32_t c_gyro, c_predict, c_accel, c_mag;
+        uint32_t c_gyro, c_predict, c_accel, c_mag, c_step;
 
-        motion(sim.t, w);
+        ts_bench_motion(sim.t, w);
         ts_sim_step(&sim, (att_flags(&filter) & ATT_FLAG_ALIGNED) ? w : still, NULL, &s);
         if ((att_flags(&filter) & ATT_FLAG_ALIGNED) == 0u) {
             if (att_step(&filter, &s, NULL) != EKF_OK) {
@@ -170,6 +173,7 @@ int main(int argc, char **argv)
             continue;
         }
         staged = filter;
+        parts = filter;
 
         /* the full step, with its stack */
         target_stack_paint(sp - STACK_DEPTH, sp - STACK_MARGIN);
@@ -180,7 +184,8 @@ int main(int argc, char **argv)
         if (used > max_stack) {
             max_stack = used;
         }
-        stat_add(&st_step, to_insns(elapsed(t0, t1) - base));
+        c_step = to_insns(elapsed(t0, t1) - base);
+        stat_add(&st_step, c_step);
         if (status != EKF_OK && status != EKF_GATED && status != EKF_SKIPPED) {
             ++errors;
         }
@@ -207,12 +212,64 @@ int main(int argc, char **argv)
         stat_add(&st_accel, c_accel);
         stat_add(&st_mag, c_mag);
         stat_add(&st_stages, c_gyro + c_predict + c_accel + c_mag);
+
+        /* att_step's parts, in its order, on the third copy */
+        {
+            att_vars_t *const pv = &parts.vars;
+            const att_settings_t *const set = &parts.settings;
+            uint32_t c_commit, c_rest, c_guard, sum;
+            int ok;
+            t0 = TARGET_SYSTICK_NOW;
+            att_vars_copy(&saved, pv);
+            t1 = TARGET_SYSTICK_NOW;
+            c_commit = to_insns(elapsed(t0, t1) - base);
+            t0 = TARGET_SYSTICK_NOW;
+            pv->flags &= ~ATT_FLAG_AT_REST;
+            if (att_rest_update(&pv->rest, &set->rest, s.gyro, s.accel, s.dt)) {
+                pv->flags |= ATT_FLAG_AT_REST;
+            }
+            t1 = TARGET_SYSTICK_NOW;
+            c_rest = to_insns(elapsed(t0, t1) - base);
+            t0 = TARGET_SYSTICK_NOW;
+            (void)att_stage_gyro(pv, set, s.gyro);
+            t1 = TARGET_SYSTICK_NOW;
+            c_gyro = to_insns(elapsed(t0, t1) - base);
+            t0 = TARGET_SYSTICK_NOW;
+            (void)att_stage_predict(pv, set, s.dt);
+            ekf_count(&pv->diag.steps);
+            t1 = TARGET_SYSTICK_NOW;
+            c_predict = to_insns(elapsed(t0, t1) - base);
+            t0 = TARGET_SYSTICK_NOW;
+            (void)att_stage_accel(pv, set, s.accel);
+            t1 = TARGET_SYSTICK_NOW;
+            c_accel = to_insns(elapsed(t0, t1) - base);
+            t0 = TARGET_SYSTICK_NOW;
+            (void)att_stage_mag(pv, set, s.mag);
+            t1 = TARGET_SYSTICK_NOW;
+            c_mag = to_insns(elapsed(t0, t1) - base);
+            t0 = TARGET_SYSTICK_NOW;
+            ok = att_guard_covariance(pv, set) == EKF_OK && ekf_all_finite(pv->x, ATT_N);
+            t1 = TARGET_SYSTICK_NOW;
+            c_guard = to_insns(elapsed(t0, t1) - base);
+            if (!ok) {
+                ++errors;
+            }
+            stat_add(&st_p_commit, c_commit);
+            stat_add(&st_p_rest, c_rest);
+            stat_add(&st_p_gyro, c_gyro);
+            stat_add(&st_p_predict, c_predict);
+            stat_add(&st_p_accel, c_accel);
+            stat_add(&st_p_mag, c_mag);
+            stat_add(&st_p_guard, c_guard);
+            sum = c_commit + c_rest + c_gyro + c_predict + c_accel + c_mag + c_guard;
+            stat_add(&st_p_other, (c_step > sum) ? c_step - sum : 0u);
+        }
         {
             static ekf_scalar_t P_staged[ATT_N * ATT_N], P_filter[ATT_N * ATT_N];
             att_get_covariance(&staged, P_staged);
             att_get_covariance(&filter, P_filter);
             if (memcmp(att_state(&staged), att_state(&filter), sizeof(ekf_scalar_t) * ATT_N) != 0 ||
-                memcmp(P_staged, P_filter, sizeof P_filter) != 0) {
+                memcmp(P_staged, P_filter, sizeof P_filter) != 0 || memcmp(&parts, &filter, sizeof parts) != 0) {
                 ++mismatches;
             }
         }
@@ -224,6 +281,14 @@ int main(int argc, char **argv)
     stat_print(&st_mag);
     stat_print(&st_step);
     stat_print(&st_stages);
+    stat_print(&st_p_commit);
+    stat_print(&st_p_rest);
+    stat_print(&st_p_gyro);
+    stat_print(&st_p_predict);
+    stat_print(&st_p_accel);
+    stat_print(&st_p_mag);
+    stat_print(&st_p_guard);
+    stat_print(&st_p_other);
     {
         const att_diag_t *d = att_diag(&filter);
         double e[3];
@@ -252,7 +317,7 @@ int main(int argc, char **argv)
            (unsigned long)(sizeof filter.vars.x + sizeof filter.vars.cov), (unsigned long)sizeof filter,
            (unsigned long)sizeof filter.settings);
     if (errors > 0u || mismatches > 0u) {
-        printf("error: %lu steps failed, %lu staged runs differ from att_step\n", (unsigned long)errors,
+        printf("error: %lu steps failed, %lu staged or part-by-part runs differ from att_step\n", (unsigned long)errors,
                (unsigned long)mismatches);
         return 1;
     }

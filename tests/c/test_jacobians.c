@@ -1,6 +1,7 @@
 /*
  * test_jacobians.c - every Jacobian of the attitude model against central finite
- * differences (double build).
+ * differences (double build): the transition Jacobian both as D = F - I and as the factors
+ * F = F2 F1 the covariance propagation uses.
  *
  * Finite differences: Richardson-extrapolated central differences,
  *   D(h) = (f(x+h) - f(x-h)) / 2h,  J_fd = (4 D(h/2) - D(h)) / 3   (error O(h^4)),
@@ -56,6 +57,34 @@ static void analytic_F(const double x[ATT_N], double dt, double F[ATT_N * ATT_N]
     }
     for (i = 0; i < ATT_GEN_F_NNZ; ++i) {
         F[att_gen_f_pattern[i].row * ATT_N + att_gen_f_pattern[i].col] += d[i];
+    }
+}
+
+/* The same F as the filter uses it: F2 F1 from att_gen_transition_factors. */
+static void factored_F(const double x[ATT_N], double dt, double F[ATT_N * ATT_N])
+{
+    double xn[ATT_N], d1[ATT_GEN_F1_NNZ], d2[ATT_GEN_F2_NNZ], F1[ATT_N * ATT_N] = {0}, F2[ATT_N * ATT_N] = {0};
+    att_trig_t tm, tn;
+    int i, j, k;
+    att_model_transition(x, NULL, dt, NO_CLAMP, xn, &tm, &tn);
+    att_gen_transition_factors(&tm, &tn, x, dt, d1, d2);
+    for (i = 0; i < ATT_N; ++i) {
+        F1[i * ATT_N + i] = F2[i * ATT_N + i] = 1.0;
+    }
+    for (k = 0; k < ATT_GEN_F1_NNZ; ++k) {
+        F1[att_gen_f1_pattern[k].row * ATT_N + att_gen_f1_pattern[k].col] += d1[k];
+    }
+    for (k = 0; k < ATT_GEN_F2_NNZ; ++k) {
+        F2[att_gen_f2_pattern[k].row * ATT_N + att_gen_f2_pattern[k].col] += d2[k];
+    }
+    for (i = 0; i < ATT_N; ++i) {
+        for (j = 0; j < ATT_N; ++j) {
+            double a = 0.0;
+            for (k = 0; k < ATT_N; ++k) {
+                a += F2[i * ATT_N + k] * F1[k * ATT_N + j];
+            }
+            F[i * ATT_N + j] = a;
+        }
     }
 }
 
@@ -117,18 +146,23 @@ static double step_for(int j, const double F[ATT_N * ATT_N], double dt, double m
 
 static double check_transition(const double x[ATT_N], double dt, double margin_m, double margin_n)
 {
-    double F[ATT_N * ATT_N], col[ATT_N], G[ATT_N * 3], g[9];
+    double F[ATT_N * ATT_N], Ff[ATT_N * ATT_N], col[ATT_N], G[ATT_N * 3], g[9];
     double worst = 0.0;
     att_trig_t tn;
     double xn[ATT_N];
     int i, j;
     analytic_F(x, dt, F);
+    factored_F(x, dt, Ff);
     for (j = 0; j < ATT_N; ++j) {
         richardson(x, dt, 0, j, step_for(j, F, dt, margin_m, margin_n), col);
         for (i = 0; i < ATT_N; ++i) {
-            const double e = entry_error(F[i * ATT_N + j], col[i]);
+            /* D (att_gen_transition_jacobian) and its factors F2 F1 (what the filter uses) */
+            const double e = entry_error(F[i * ATT_N + j], col[i]), ef = entry_error(Ff[i * ATT_N + j], col[i]);
             if (e > worst) {
                 worst = e;
+            }
+            if (ef > worst) {
+                worst = ef;
             }
         }
     }

@@ -36,14 +36,6 @@
 
 static const peer_t *const all_peers[] = {&peer_fusion, &peer_vqf, &peer_basicvqf};
 
-/* bench.c's motion, rad/s */
-static void motion(double t, double w[3])
-{
-    w[0] = 0.8 * sin(2.0 * 3.141592653589793 * 0.23 * t);
-    w[1] = 0.5 * sin(2.0 * 3.141592653589793 * 0.17 * t + 1.0);
-    w[2] = 0.6 * sin(2.0 * 3.141592653589793 * 0.11 * t + 2.0);
-}
-
 /* One measured update: of a peer, or of attekf (peer NULL). Not inlined, so that callgrind
  * can collect exactly these calls. */
 __attribute__((noinline)) void peers_measured_step(const peer_t *peer, att_ekf_t *ours, const att_sample_t *s,
@@ -111,7 +103,7 @@ static int run(const peer_t *peer, unsigned long samples)
         return 1;
     }
     ts_sim_default(&cfg);
-    ts_sim_init(&sim, &cfg, 12345u, 0.2, -0.1, 1.0);
+    ts_sim_init(&sim, &cfg, TS_BENCH_SEED, TS_BENCH_PHI, TS_BENCH_THETA, TS_BENCH_PSI);
     if (peer != NULL) {
         peer->init(0.01f);
     }
@@ -122,7 +114,7 @@ static int run(const peer_t *peer, unsigned long samples)
         att_sample_t s;
         float g[3], a[3], m[3];
         int i;
-        motion(sim.t, w);
+        ts_bench_motion(sim.t, w);
         ts_sim_step(&sim, aligned ? w : still, NULL, &s);
         for (i = 0; i < 3; ++i) {
             g[i] = ekf_to_float(s.gyro[i]);

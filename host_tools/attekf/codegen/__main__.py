@@ -12,12 +12,13 @@ import sys
 from pathlib import Path
 from typing import Callable, Dict, List, Tuple
 
-from . import attitude
+from . import attitude, covgen
 from . import constacc, radar, slam
 
 # (output directory relative to the repository root, builder)
 TARGETS: List[Tuple[str, Callable[[], Dict[str, str]]]] = [
     ("firmware/att", attitude.build),
+    ("firmware/att", covgen.build),
     ("firmware/models", constacc.build),
     ("firmware/models", radar.build),
     ("firmware/models", slam.build),

@@ -29,6 +29,7 @@ per step in hand-written code that also applies the gimbal-lock clamp (att_model
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Dict
 
@@ -146,6 +147,7 @@ def _trig_subs(expr: sp.Expr, ph: sp.Expr, th: sp.Expr, syms: tuple = TRIG) -> s
     return expr
 
 
+@functools.lru_cache(maxsize=None)
 def transition_jacobians() -> tuple:
     """(F, G): df/dx and df/dw at w = 0, trig replaced by att_trig_t symbols (TRIG_MID for
     the midpoint angles, TRIG for the advanced ones).
@@ -172,6 +174,35 @@ def transition_jacobians() -> tuple:
     G[0:3, 0:3] = sp.eye(3)
     G[6:9, :] = rates.jacobian(NOISE).subs(zero_noise).applyfunc(lambda e: _trig_subs(e, a, b))
     return F, G
+
+
+@functools.lru_cache(maxsize=None)
+def transition_factors() -> tuple:
+    """(D1, D2): F = F2 F1 with F1 = I + D1, F2 = I + D2 (docs/derivation.md, "State
+    Jacobian").
+
+    F1 advances the angles and leaves every other state: its angle rows are those of F
+    (d Theta+/dx), the rest is the identity. F2 then replaces the Euler rates by
+    W(Theta+) omega: its rate rows are d Thetadot+/d(omega, phi+, theta+) (W+ and M+ of the
+    table in derivation.md) and zero in the rate columns, the rest is the identity. The
+    product is the chain rule that transition_jacobians() writes out, with fewer non-zeros
+    per factor than in F (17 + 12 against 39), which is what the covariance propagation
+    exploits (covgen.py). Trig as in transition_jacobians()."""
+    F, _ = transition_jacobians()
+    a, b = sp.symbols("a_adv b_adv", real=True)
+    omega = sp.Matrix([p, q, r])
+    rates = euler_rate_map(a, b) * omega
+    F1 = sp.eye(9)
+    F1[3:6, :] = F[3:6, :]
+    F2 = sp.eye(9)
+    block = sp.zeros(3, 9)
+    block[:, 0:3] = rates.jacobian(omega)
+    block[:, 3] = rates.diff(a)
+    block[:, 4] = rates.diff(b)
+    F2[6:9, :] = block.applyfunc(lambda e: _trig_subs(e, a, b))
+    if sp.expand(F2 * F1 - F) != sp.zeros(9, 9):
+        raise AssertionError("F2 F1 differs from the transition Jacobian")
+    return F1 - sp.eye(9), F2 - sp.eye(9)
 
 
 def _index(i: int) -> str:
@@ -355,6 +386,29 @@ def build() -> Dict[str, str]:
         )
     )
 
+    # The factors F = F2 F1 for the covariance propagation (transition_factors).
+    D1, D2 = transition_factors()
+    d1_entries = sparse_entries(D1)
+    d2_entries = sparse_entries(D2)
+    assert [(i, j) for i, j, _ in d1_entries] == [(i, j) for i, j, _ in d_entries if i < 6], \
+        "F1's rows are the angle rows of F"
+    fns.append(
+        CFunction(
+            scales=SCALES,
+            name="att_gen_transition_factors",
+            doc="F = F2 F1, F1 = I + D1, F2 = I + D2 (docs/derivation.md, \"State Jacobian\"): d1 the values\n"
+            "of D1 (the angle rows of D) in the order of att_gen_f1_pattern, d2 those of D2 (the\n"
+            "Euler-rate rows: W+ on the body rates, M+ on roll and pitch, -1 on the rate itself) in\n"
+            "the order of att_gen_f2_pattern. Arguments as for att_gen_transition_jacobian.",
+            params="const att_trig_t *tm, const att_trig_t *t, const ekf_scalar_t x[ATT_N], ekf_scalar_t dt, "
+            "ekf_scalar_t d1[ATT_GEN_F1_NNZ], ekf_scalar_t d2[ATT_GEN_F2_NNZ]",
+            prologue=TRIG_MID_PROLOGUE + TRIG_PROLOGUE + STATE_PROLOGUE,
+            outputs=[(f"d1[{k}]", sp.horner(e, wrt=dt)) for k, (_, _, e) in enumerate(d1_entries)]
+            + [(f"d2[{k}]", e) for k, (_, _, e) in enumerate(d2_entries)],
+            cse_ignore=[dt],
+        )
+    )
+
     pattern = ",\n    ".join(f"{{{_index(i)}, {_index(j)}}}" for i, j, _ in d_entries)
     header_extra = (
         '#include "att_defs.h"\n\n'
@@ -364,11 +418,27 @@ def build() -> Dict[str, str]:
         "extern const ekf_nz_t att_gen_f_pattern[ATT_GEN_F_NNZ];"
     )
     source_extra = f"const ekf_nz_t att_gen_f_pattern[ATT_GEN_F_NNZ] = {{\n    {pattern}\n}};"
+    for name, entries, what in (("f1", d1_entries, "the angle rows"), ("f2", d2_entries, "the Euler-rate rows")):
+        pat = ", ".join(f"{{{_index(i)}, {_index(j)}}}" for i, j, _ in entries)
+        header_extra += (
+            f"\n\n/* Number of structurally non-zero entries of D{name[1]} = F{name[1]} - I ({what}), and their\n"
+            f" * (row, column), sorted by row (att_gen_transition_factors). */\n"
+            f"#define ATT_GEN_{name.upper()}_NNZ {len(entries)}\n"
+            f"extern const ekf_nz_t att_gen_{name}_pattern[ATT_GEN_{name.upper()}_NNZ];"
+        )
+        source_extra += f"\n\nconst ekf_nz_t att_gen_{name}_pattern[ATT_GEN_{name.upper()}_NNZ] = {{{pat}}};"
     # P <- F P F^T unrolled for this pattern (perf: docs/performance.md)
     prop_decl, prop_def = covprop.emit("att_gen_cov_propagate", 9, "ATT_N", "ATT_GEN_F_NNZ",
                                        [(i, j) for i, j, _ in d_entries], _index, "att_gen_f_pattern")
     header_extra += "\n\n" + prop_decl
     source_extra += "\n\n" + prop_def
+    # the same for each factor (the reference covariance implementation, att_cov_ref.c)
+    for name, entries in (("f1", d1_entries), ("f2", d2_entries)):
+        decl, defn = covprop.emit(f"att_gen_cov_propagate_{name}", 9, "ATT_N", f"ATT_GEN_{name.upper()}_NNZ",
+                                  [(i, j) for i, j, _ in entries], _index, f"att_gen_{name}_pattern")
+        header_extra += "\n\n" + decl.replace("F = I + D, d: the values of D",
+                                                f"F = I + D{name[1]}, d: the values of D{name[1]}")
+        source_extra += "\n\n" + defn
     return render_files(
         stem="att_gen",
         title="attitude model: kinematics, Jacobians and measurement functions",

@@ -184,6 +184,13 @@ void ts_sim_step(ts_sim_t *s, const double w[3], const double lin_acc[3], att_sa
     out->valid = ATT_HAS_GYRO | ATT_HAS_ACCEL | ATT_HAS_MAG;
 }
 
+void ts_bench_motion(double t, double w[3])
+{
+    w[0] = 0.8 * sin(2.0 * 3.141592653589793 * 0.23 * t);
+    w[1] = 0.5 * sin(2.0 * 3.141592653589793 * 0.17 * t + 1.0);
+    w[2] = 0.6 * sin(2.0 * 3.141592653589793 * 0.11 * t + 2.0);
+}
+
 void ts_sim_euler(const ts_sim_t *s, double e[3])
 {
     ts_R_to_euler(s->R, e);

@@ -57,6 +57,16 @@ void ts_sim_init(ts_sim_t *s, const ts_sim_cfg_t *cfg, uint64_t seed, double phi
 void ts_sim_step(ts_sim_t *s, const double w[3], const double lin_acc[3], att_sample_t *out);
 void ts_sim_euler(const ts_sim_t *s, double e[3]);
 
+/* The firmware benchmark's recording (firmware/target/bench.c): ts_sim_default with seed
+ * TS_BENCH_SEED from the attitude TS_BENCH_PHI/THETA/PSI (rad), at rest until the filter is
+ * aligned, then this slow tumble (body rate in rad/s at time t in s: components of
+ * different frequencies, so that every angle and rate takes many values). */
+#define TS_BENCH_SEED 12345u
+#define TS_BENCH_PHI 0.2
+#define TS_BENCH_THETA (-0.1)
+#define TS_BENCH_PSI 1.0
+void ts_bench_motion(double t, double w[3]);
+
 /* Covariance checks on a row-major n x n matrix (any scalar, passed as double). */
 int ts_is_symmetric_exact(const ekf_scalar_t *P, int n);
 /* Cholesky in double: 1 if positive definite (every pivot > 0), min pivot in *min_pivot. */
