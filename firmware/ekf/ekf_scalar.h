@@ -95,10 +95,9 @@ static inline ekf_scalar_t ekf_sub(ekf_scalar_t a, ekf_scalar_t b) { return ekf_
 static inline ekf_scalar_t ekf_mul(ekf_scalar_t a, ekf_scalar_t b) { return ekf_fx_mul(a, b); }
 static inline ekf_scalar_t ekf_div(ekf_scalar_t a, ekf_scalar_t b) { return ekf_fx_div(a, b); }
 static inline ekf_scalar_t ekf_neg(ekf_scalar_t a) { return ekf_fx_neg(a); }
-static inline ekf_scalar_t ekf_mac(ekf_scalar_t c, ekf_scalar_t a, ekf_scalar_t b)
-{
-    return ekf_fx_add(c, ekf_fx_mul(a, b));
-}
+static inline ekf_scalar_t ekf_mac(ekf_scalar_t c, ekf_scalar_t a, ekf_scalar_t b) { return ekf_fx_mac(c, a, b); }
+/* sin and cos of one angle, one argument reduction. */
+static inline void ekf_sincos(ekf_scalar_t a, ekf_scalar_t *s, ekf_scalar_t *c) { ekf_fx_sincos(a, s, c); }
 /* Saturated values are the infinities of the format: not finite. */
 static inline int ekf_isfinite(ekf_scalar_t a) { return ekf_fx_isfinite(a); }
 /* Branch-free finiteness of many values (see the IEEE version): acc stays zero while
