@@ -47,9 +47,20 @@ extern "C" {
 
 /* Covariance implementation of the attitude filter (firmware/att/att_cov.h; exactly one):
  *   ATT_COV_REFERENCE  full row-major 9x9 P on the generic routines of ekf.h
- *                      (att_cov_ref.c): the only implementation so far, the default.
+ *                      (att_cov_ref.c): the default of the float and double builds.
+ *   ATT_COV_FX         32-bit words with a power-of-two scale per state (att_cov_fx.c,
+ *                      docs/fixed_point.md): the default of the fixed-point build.
  */
-#if !defined(ATT_COV_REFERENCE)
+#if defined(ATT_COV_REFERENCE) && defined(ATT_COV_FX)
+#error "ekf_config.h: define at most one of ATT_COV_REFERENCE, ATT_COV_FX"
+#endif
+#if defined(ATT_COV_FX) && !defined(EKF_SCALAR_FIXED)
+#error "ekf_config.h: ATT_COV_FX is the fixed-point build's covariance (EKF_SCALAR_FIXED)"
+#endif
+#if defined(EKF_SCALAR_FIXED) && !defined(ATT_COV_REFERENCE) && !defined(ATT_COV_FX)
+#define ATT_COV_FX 1
+#endif
+#if !defined(ATT_COV_REFERENCE) && !defined(ATT_COV_FX)
 #define ATT_COV_REFERENCE 1
 #endif
 
