@@ -26,12 +26,20 @@
 /* Packed index of (i, j) in att_cov_t.c (symmetric). */
 extern const uint8_t att_fx_ix[ATT_N][ATT_N];
 
+/* The few-instruction helpers of the kernels' inner loops are inlined even at -Os (a call
+ * would cost more than their body on the Cortex-M3). */
+#if defined(__GNUC__)
+#define ATT_FX_INLINE static inline __attribute__((always_inline))
+#else
+#define ATT_FX_INLINE static inline
+#endif
+
 /* Bit length of v (0 for 0), of |v|. */
 #define att_fx_bitlen64 ekf_fx_bitlen64
-static inline int att_fx_abslen(int64_t v) { return ekf_fx_bitlen64((v < 0) ? (uint64_t)0 - (uint64_t)v : (uint64_t)v); }
+ATT_FX_INLINE int att_fx_abslen(int64_t v) { return ekf_fx_bitlen64((v < 0) ? (uint64_t)0 - (uint64_t)v : (uint64_t)v); }
 /* round(v 2^-sh) as a C word (saturated to +-INT32_MAX): the common case inline. */
 int32_t att_fx_to_c_any(int64_t v, int sh);
-static inline int32_t att_fx_to_c(int64_t v, int sh)
+ATT_FX_INLINE int32_t att_fx_to_c(int64_t v, int sh)
 {
     if (sh > 0 && sh < 63) {
         const int64_t r = (v + ((int64_t)1 << (sh - 1))) >> sh;

@@ -134,12 +134,14 @@ uint32_t ekf_fx_rsqrt32(uint32_t d);
 /* Number of leading zero bits of a non-zero 32-bit value: one CLZ instruction on the
  * Cortex-M3 (and x86) through the compiler's builtin, else a portable search. */
 #if defined(__GNUC__)
-static inline int ekf_fx_clz32(uint32_t v) { return __builtin_clz(v); }
+static inline __attribute__((always_inline)) int ekf_fx_clz32(uint32_t v) { return __builtin_clz(v); }
+#define EKF_FX_INLINE static inline __attribute__((always_inline))
 #else
 int ekf_fx_clz32(uint32_t v);
+#define EKF_FX_INLINE static inline
 #endif
 /* Bit length of v (0 for 0). */
-static inline int ekf_fx_bitlen64(uint64_t v)
+EKF_FX_INLINE int ekf_fx_bitlen64(uint64_t v)
 {
     const uint32_t hi = (uint32_t)(v >> 32);
     return (hi != 0u) ? 64 - ekf_fx_clz32(hi) : ((uint32_t)v != 0u) ? 32 - ekf_fx_clz32((uint32_t)v) : 0;
