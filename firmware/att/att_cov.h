@@ -12,9 +12,11 @@
  *
  * Implementations (ekf_config.h): ATT_COV_GENERATED (the default for float and double),
  * packed symmetric storage with generated straight-line kernels (att_cov_gen.c, generator
- * host_tools/attekf/codegen/covgen.py); ATT_COV_REFERENCE (-DATT_COV_REFERENCE=1, and the
- * fixed-point build), full row-major 9x9 on the generic routines of ekf.h and the generated
- * propagations att_gen_cov_propagate_f1/_f2 (att_cov_ref.c): the same filter unoptimised.
+ * host_tools/attekf/codegen/covgen.py); ATT_COV_FX (the default for fixed point), 32-bit
+ * words with a power-of-two scale per state (att_cov_fx.c, att_cov_fx_kernels.c);
+ * ATT_COV_REFERENCE (-DATT_COV_REFERENCE=1), full row-major 9x9 on the generic routines of
+ * ekf.h and the generated propagations att_gen_cov_propagate_f1/_f2 (att_cov_ref.c): the
+ * same filter unoptimised.
  */
 #ifndef ATT_COV_H
 #define ATT_COV_H
@@ -39,6 +41,18 @@ typedef struct {
 typedef struct {
     ekf_scalar_t p[ATT_COV_NP]; /* P_ij (i >= j) at p[i (i + 1) / 2 + j] */
 } att_cov_t;
+#elif defined(ATT_COV_FX)
+/* Fixed point (att_cov_fx.c, docs/fixed_point.md "Covariance"): P_ij = C_ij 2^(e_i + e_j - 29),
+ * C normalised so that C_ii is in [2^29, 2^31) (1 <= c_ii < 4) by the state's exponent. */
+typedef struct {
+    int32_t c[ATT_N * (ATT_N + 1) / 2]; /* C_ij for i <= j, row by row (45 words) */
+    int8_t e[ATT_N];                     /* scale exponent of each state */
+    uint8_t spare;                       /* always 0 (no padding byte in the struct) */
+    uint16_t inf;                        /* bit i: state i's variance is infinite (overflowed) */
+} att_cov_t;
+/* The guard's absolute margin (att_cov_is_pd), Q29.34: 8 LSB, above the 4.5 LSB by which
+ * rounding each entry of P to the scalar (att_cov_to_full) can lower its eigenvalues. */
+#define ATT_COV_FX_TAU ((ekf_scalar_t)8)
 #else
 #error "att_cov.h: no covariance implementation selected (see ekf_config.h)"
 #endif
@@ -119,7 +133,9 @@ ekf_status_t att_cov_update_tilt(att_cov_t *c, ekf_scalar_t x[ATT_N], ekf_scalar
 /* ---- definiteness ---- */
 
 /* 1 if P has an LDL^T factorisation (in the scalar type) with every pivot
- * d_j >= rel_margin P_jj > 0 (ekf_cov_is_pd), else 0. */
+ * d_j >= rel_margin P_jj > 0 (ekf_cov_is_pd), else 0. ATT_COV_FX factorises P - tau I with
+ * tau = ATT_COV_FX_TAU, an absolute margin: P then stays positive definite when its entries
+ * are rounded to the scalar type (att_cov_to_full). */
 int att_cov_is_pd(const att_cov_t *c, ekf_scalar_t rel_margin);
 /* The guard: if att_cov_is_pd fails, P is repaired by diagonal loading
  * (ekf_cov_ensure_pd); afterwards every P_ii >= var_floor. Returns the number of repair

@@ -3,7 +3,7 @@
  * generic routines of ekf.h (ekf_update_scalar, ekf_cov_limit_variance, ekf_cov_is_pd,
  * ekf_cov_ensure_pd) and the generated att_gen_cov_propagate_f1/_f2 (ekf_cov_propagate
  * unrolled, bit for bit). The same filter without any storage optimisation; selected with
- * -DATT_COV_REFERENCE=1 (ekf_config.h) and by the fixed-point build.
+ * -DATT_COV_REFERENCE=1 (ekf_config.h).
  */
 #include "att_cov.h"
 

@@ -45,16 +45,17 @@ const att_settings_t att_default_settings = {
     .mag_range = EKF_C(5000.0),
     /* robustness */
     .gate_timeout = EKF_C(1.0),
-#if defined(EKF_SCALAR_FIXED)
-    /* 85 deg: within it the Q29.34 format never saturates (Euler-rate Jacobian ~ sec^2;
-     * docs/fixed_point.md, "Operating envelope") */
-    .gimbal_limit = EKF_C(1.4835298641951802),
-#else
     .gimbal_limit = EKF_C(1.55), /* 88.8 deg */
-#endif
     .dt_max = EKF_C(0.5),
     .heading_var_max = EKF_C(9.869604401089358), /* pi^2 */
+#if defined(EKF_SCALAR_FIXED)
+    /* above the covariance guard's absolute margin (ATT_COV_FX_TAU, 8 LSB = 4.7e-10 rad^2),
+     * three decades below the smallest variance measured on BROAD, the stress and the
+     * envelope (9.9e-7; docs/fixed_point.md, "Measured ranges") */
+    .var_floor = EKF_C(1e-9),
+#else
     .var_floor = EKF_C(1e-10),
+#endif
     /* initialisation */
     .init_tilt_sigma = EKF_C(0.1),
     .init_heading_sigma = EKF_C(0.2),
@@ -75,10 +76,16 @@ static int finite_square(ekf_scalar_t v) { return ekf_isfinite(ekf_sq(v)); }
  * scalar: no noise variance that rounds to zero (nothing would be fused, or a variance
  * would be exact where it must not be), no bound or sum that saturates. Every setting in
  * range passes in float and double; the fixed-point build refuses, for example, a
- * gyro_noise of 1e-6 in Q29.34 (its square is below one LSB) or a var_floor that rounds to
- * zero (docs/fixed_point.md). */
+ * gyro_noise of 1e-6 in Q29.34 (its square is below one LSB), or a var_floor that rounds to
+ * zero or is not above twice the covariance guard's absolute margin, which the guard could
+ * then not hold (docs/fixed_point.md). */
 static int representable(const att_settings_t *s)
 {
+#if defined(ATT_COV_FX)
+    if (!(s->var_floor >= 2 * ATT_COV_FX_TAU)) {
+        return 0;
+    }
+#endif
     const ekf_scalar_t sec_lim = ekf_div(EKF_C(1), ekf_cos(s->gimbal_limit));
     const ekf_scalar_t n = ekf_from_int((int32_t)s->align_samples);
     const ekf_scalar_t r_accel = ekf_div(ekf_sq(s->accel_noise), ekf_sq(s->gravity));

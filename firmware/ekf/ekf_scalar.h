@@ -87,25 +87,24 @@ static inline float ekf_to_float(ekf_scalar_t a) { return a; }
 
 /* Signed Q-format fixed point in an int64_t (ekf_fixed.h, docs/fixed_point.md): Q29.34 by
  * default (EKF_FX_FRAC). Comparisons and assignment stay native (a monotonic encoding);
- * everything else goes through the saturating ekf_fx_* operations. */
+ * everything else goes through the saturating ekf_fx_* operations. The covariance is held
+ * apart, in 32-bit words with a scale per state (att_cov_fx.c). */
 #include "ekf_fixed.h"
 
 typedef ekf_fx_t ekf_scalar_t;
 #define EKF_SCALAR_NAME "fixed"
 #define EKF_C(x) EKF_FX_C(x)
-#define EKF_SCALAR_EPS ((ekf_scalar_t)1) /* one LSB */
-/* Every product is rounded to one LSB, so its error grows with the size of the factors,
- * not with the size of the result. */
+/* Relative rounding unit of the covariance arithmetic: its 32-bit words hold each entry
+ * normalised to [1, 4) of its state's scale with 29 fraction bits (att_cov_fx.c), so an
+ * entry is known to 2^-29 of at most 4: 2^-27 of its scale. */
+#define EKF_SCALAR_EPS ((ekf_scalar_t)1 << (EKF_FX_FRAC - 27))
+/* Every product of the generic arithmetic is rounded to one LSB, so its error grows with
+ * the size of the factors, not with the size of the result. */
 #define EKF_SCALAR_ABS_EPS ((ekf_scalar_t)1)
 
 static inline ekf_scalar_t ekf_sqrt(ekf_scalar_t a) { return ekf_fx_sqrt(a); }
 static inline ekf_scalar_t ekf_sin(ekf_scalar_t a) { return ekf_fx_sin(a); }
 static inline ekf_scalar_t ekf_cos(ekf_scalar_t a) { return ekf_fx_cos(a); }
-static inline void ekf_sincos(ekf_scalar_t a, ekf_scalar_t *s, ekf_scalar_t *c)
-{
-    *s = ekf_fx_sin(a);
-    *c = ekf_fx_cos(a);
-}
 static inline ekf_scalar_t ekf_atan2(ekf_scalar_t y, ekf_scalar_t x) { return ekf_fx_atan2(y, x); }
 static inline ekf_scalar_t ekf_abs(ekf_scalar_t a) { return ekf_fx_abs(a); }
 static inline ekf_scalar_t ekf_floor(ekf_scalar_t a) { return ekf_fx_floor(a); }
@@ -120,10 +119,9 @@ static inline ekf_scalar_t ekf_sub(ekf_scalar_t a, ekf_scalar_t b) { return ekf_
 static inline ekf_scalar_t ekf_mul(ekf_scalar_t a, ekf_scalar_t b) { return ekf_fx_mul(a, b); }
 static inline ekf_scalar_t ekf_div(ekf_scalar_t a, ekf_scalar_t b) { return ekf_fx_div(a, b); }
 static inline ekf_scalar_t ekf_neg(ekf_scalar_t a) { return ekf_fx_neg(a); }
-static inline ekf_scalar_t ekf_mac(ekf_scalar_t c, ekf_scalar_t a, ekf_scalar_t b)
-{
-    return ekf_fx_add(c, ekf_fx_mul(a, b));
-}
+static inline ekf_scalar_t ekf_mac(ekf_scalar_t c, ekf_scalar_t a, ekf_scalar_t b) { return ekf_fx_mac(c, a, b); }
+/* sin and cos of one angle, one argument reduction. */
+static inline void ekf_sincos(ekf_scalar_t a, ekf_scalar_t *s, ekf_scalar_t *c) { ekf_fx_sincos(a, s, c); }
 /* Saturated values are the infinities of the format: not finite. */
 static inline int ekf_isfinite(ekf_scalar_t a) { return ekf_fx_isfinite(a); }
 /* Branch-free finiteness of many values (see the IEEE version): acc stays zero while

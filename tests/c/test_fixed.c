@@ -24,8 +24,8 @@ void tearDown(void) {}
 #endif
 
 /* Stated bounds (ekf_fixed.h, docs/fixed_point.md). */
-#define SIN_COS_ABS (3.0 * LSB)
-#define ATAN2_ABS (3.0 * LSB)
+#define SIN_COS_ABS 9.313225746154785e-10 /* 2^-30 */
+#define ATAN2_ABS 9.313225746154785e-10
 #define SQRT_REL 4.7e-10 /* 2^-31 */
 
 static double d(ekf_scalar_t a) { return ekf_to_double(a); }
@@ -40,8 +40,8 @@ static ekf_scalar_t random_short(ts_rng_t *r, int lo, int hi)
     return (ts_uniform(r) < 0.5) ? -v : v;
 }
 
-/* Exact round-half-away-from-zero of a double holding an integer + fraction. */
-static double round_away(double v) { return (v < 0.0) ? -floor(-v + 0.5) : floor(v + 0.5); }
+/* Exact round half up (ties toward +inf) of a double holding an integer + fraction. */
+static double round_half_up(double v) { return floor(v + 0.5); }
 
 static void test_constants_and_conversions(void)
 {
@@ -102,8 +102,9 @@ static void test_saturation_counted_and_propagated(void)
     TEST_ASSERT_EQUAL_UINT32(0u, ekf_scalar_saturations());
 }
 
-/* mul is the correctly rounded (half away from zero) product; exact check on operands
- * whose product double holds exactly, bounded check on full-width operands. */
+/* mul is the correctly rounded product, ties toward +inf; exact check on operands whose
+ * product double holds exactly (the fast path for |a|, |b| < 2^47 and the slow one beyond),
+ * bounded check on full-width operands. */
 static void test_mul_correctly_rounded(void)
 {
     ts_rng_t r;
@@ -115,11 +116,14 @@ static void test_mul_correctly_rounded(void)
         if (fabs(exact) >= 9.2e18) {
             continue;
         }
-        if (!(ekf_mul(a, b) == (ekf_scalar_t)round_away(exact))) {
+        if (!(ekf_mul(a, b) == (ekf_scalar_t)round_half_up(exact))) {
             printf("mul %lld * %lld: got %lld, want %.1f\n", (long long)a, (long long)b, (long long)ekf_mul(a, b), exact);
             TEST_FAIL();
         }
-        TEST_ASSERT_TRUE(ekf_mul(ekf_neg(a), b) == ekf_neg(ekf_mul(a, b))); /* odd */
+        /* odd, except at an exact tie (rounded up either way) */
+        TEST_ASSERT_TRUE(ekf_mul(ekf_neg(a), b) == ekf_neg(ekf_mul(a, b)) || exact - floor(exact) == 0.5);
+        /* the multiply-add rounds its product the same way */
+        TEST_ASSERT_TRUE(ekf_mac(EKF_C(1), a, b) == ekf_add(EKF_C(1), ekf_mul(a, b)));
     }
     for (k = 0; k < TRIALS; ++k) {
         const ekf_scalar_t a = ekf_from_double(ts_uniform_in(&r, -2896.0, 2896.0));
@@ -158,6 +162,94 @@ static void test_div_correctly_rounded(void)
     TEST_ASSERT_TRUE(ekf_div(EKF_C(1), EKF_C(3)) == (EKF_FX_ONE + 1) / 3);
     TEST_ASSERT_TRUE(ekf_div(EKF_C(-7), EKF_C(2)) == EKF_C(-3.5));
     TEST_ASSERT_EQUAL_UINT32(0u, ekf_scalar_saturations());
+}
+
+/* The restoring long division the library used before its reciprocal-based one, as the
+ * reference: q = round(|a| 2^F / |b|) half away from zero, the sign applied after. */
+static ekf_scalar_t div_reference(ekf_scalar_t a, ekf_scalar_t b)
+{
+    uint64_t ua = (a < 0) ? (uint64_t)0 - (uint64_t)a : (uint64_t)a, ub = (b < 0) ? (uint64_t)0 - (uint64_t)b : (uint64_t)b;
+    uint64_t q = ua / ub, r = ua % ub;
+    int i;
+    if ((q >> (63 - EKF_FX_FRAC)) != 0u) {
+        return ((a < 0) != (b < 0)) ? EKF_FX_NINF : EKF_FX_INF;
+    }
+    for (i = 0; i < EKF_FX_FRAC; ++i) {
+        q <<= 1;
+        r <<= 1;
+        if (r >= ub) {
+            r -= ub;
+            q |= 1u;
+        }
+    }
+    if (r >= ub - r) {
+        ++q;
+    }
+    if (q >= (uint64_t)EKF_FX_INF) {
+        return ((a < 0) != (b < 0)) ? EKF_FX_NINF : EKF_FX_INF;
+    }
+    return ((a < 0) != (b < 0)) ? -(ekf_scalar_t)q : (ekf_scalar_t)q;
+}
+
+/* Random raw value with a random bit length 1 .. 63 and a random sign. */
+static ekf_scalar_t random_raw(ts_rng_t *r)
+{
+    const int bits = 1 + (int)(ts_uniform(r) * 62.0);
+    uint64_t v = ((uint64_t)(ts_uniform(r) * 4294967296.0) << 32) | (uint64_t)(ts_uniform(r) * 4294967296.0);
+    v = (v >> (64 - bits)) | ((uint64_t)1 << (bits - 1));
+    return (ts_uniform(r) < 0.5) ? -(ekf_scalar_t)v : (ekf_scalar_t)v;
+}
+
+/* The division equals the reference bit for bit over operands of every size (the
+ * quotient's two 32-bit digits, their corrections, the rounding, the saturation). */
+static void test_div_equals_long_division(void)
+{
+    ts_rng_t r;
+    int k;
+    ts_rng_seed(&r, 12);
+    for (k = 0; k < TRIALS; ++k) {
+        const ekf_scalar_t a = random_raw(&r), b = random_raw(&r);
+        const ekf_scalar_t want = div_reference(a, b);
+        ekf_scalar_t got;
+        ekf_scalar_saturations_reset();
+        got = ekf_div(a, b);
+        if (got != want) {
+            printf("div raw %lld / %lld: got %lld, want %lld\n", (long long)a, (long long)b, (long long)got, (long long)want);
+            TEST_FAIL();
+        }
+        TEST_ASSERT_EQUAL_UINT32(ekf_isfinite(want) ? 0u : 1u, ekf_scalar_saturations());
+    }
+    /* the divisor's top word all ones (the reciprocal at its clamp) and at its smallest */
+    TEST_ASSERT_TRUE(ekf_div(EKF_C(1), (ekf_scalar_t)0x7FFFFFFFFFFFFFFELL) == div_reference(EKF_C(1), (ekf_scalar_t)0x7FFFFFFFFFFFFFFELL));
+    TEST_ASSERT_TRUE(ekf_div(EKF_C(3), (ekf_scalar_t)0x4000000000000000LL) == div_reference(EKF_C(3), (ekf_scalar_t)0x4000000000000000LL));
+}
+
+/* The 32-bit reciprocal and reciprocal square root the division, the square root and the
+ * covariance use, against their stated bounds (ekf_fixed.h): 2^63 / d from below within 2
+ * (measured 1), 2^47 / sqrt(d) within -2 .. +3 (measured -1.01 .. +2.46). */
+static void test_recip32_rsqrt32_bounds(void)
+{
+    ts_rng_t r;
+    int k;
+    ts_rng_seed(&r, 13);
+    for (k = 0; k < 2 * TRIALS; ++k) {
+        const uint32_t d = 0x80000000u | (uint32_t)(ts_uniform(&r) * 2147483648.0);
+        const uint32_t e = 0x40000000u + (uint32_t)(ts_uniform(&r) * 3221225472.0); /* [2^30, 2^32) */
+        const double want_r = 9223372036854775808.0 / (double)d;
+        const double want_s = 140737488355328.0 / sqrt((double)e);
+        const double gr = (double)ekf_fx_recip32(d), gs = (double)ekf_fx_rsqrt32(e);
+        if (!((gr <= want_r && gr >= want_r - 2.0) || (want_r >= 4294967295.0 && gr == 4294967295.0))) {
+            printf("recip32(%lu) = %.1f, want %.3f\n", (unsigned long)d, gr, want_r);
+            TEST_FAIL();
+        }
+        if (!((gs <= want_s + 3.0 && gs >= want_s - 2.0) || (want_s >= 4294967295.0 && gs == 4294967295.0))) {
+            printf("rsqrt32(%lu) = %.1f, want %.3f\n", (unsigned long)e, gs, want_s);
+            TEST_FAIL();
+        }
+    }
+    TEST_ASSERT_TRUE(ekf_fx_recip32(0x80000000u) == 0xFFFFFFFFu);
+    TEST_ASSERT_TRUE(ekf_fx_recip32(0xFFFFFFFFu) <= 0x80000000u && ekf_fx_recip32(0xFFFFFFFFu) >= 0x80000000u - 2u);
+    TEST_ASSERT_TRUE(ekf_fx_rsqrt32(0x40000000u) >= 0xFFFFFFFDu); /* 2^32, clamped */
 }
 
 static void test_sqrt_error_bound(void)
@@ -202,6 +294,36 @@ static void test_sqrt_error_bound(void)
             TEST_FAIL();
         }
     }
+    /* the correctly rounded 32-bit root of the normalised radicand: equal to the
+     * digit-by-digit root the library used before, over values of every size */
+    for (k = 0; k < TRIALS; ++k) {
+        const ekf_scalar_t a = random_raw(&r);
+        const ekf_scalar_t v = (a < 0) ? -a : a;
+        uint64_t m, res = 0u, bit = (uint64_t)1 << 62;
+        int sh = 0, e;
+        while ((((uint64_t)v << sh) >> 63) == 0u) { /* leading zeros: v << sh in [2^63, 2^64) */
+            ++sh;
+        }
+        if (((EKF_FX_FRAC - sh) & 1) != 0) {
+            --sh;
+        }
+        m = (uint64_t)v << sh;
+        e = EKF_FX_FRAC - sh;
+        while (bit != 0u) {
+            if (m >= res + bit) {
+                m -= res + bit;
+                res = (res >> 1) + bit;
+            } else {
+                res >>= 1;
+            }
+            bit >>= 2;
+        }
+        if (m > res) {
+            ++res;
+        }
+        res = (e >= 0) ? res << (e / 2) : (res + ((uint64_t)1 << (-e / 2 - 1))) >> (-e / 2);
+        TEST_ASSERT_TRUE(ekf_sqrt(v) == (ekf_scalar_t)res);
+    }
     printf("sqrt: worst relative error beyond 1 LSB %.3e (bound %.1e)\n", worst, SQRT_REL);
     TEST_ASSERT_EQUAL_UINT32(0u, ekf_scalar_saturations());
 }
@@ -243,6 +365,13 @@ static void test_sin_cos_error_bound(void)
     }
     TEST_ASSERT_TRUE(ekf_sin(0) == 0);
     TEST_ASSERT_TRUE(ekf_cos(0) == EKF_C(1));
+    /* sincos: the same two values as sin and cos */
+    for (k = 0; k < TRIALS / 10; ++k) {
+        const ekf_scalar_t a = ekf_from_double(ts_uniform_in(&r, -20.0, 20.0));
+        ekf_scalar_t s, c;
+        ekf_sincos(a, &s, &c);
+        TEST_ASSERT_TRUE(s == ekf_sin(a) && c == ekf_cos(a));
+    }
     printf("sin/cos: worst absolute error %.3e (bound %.1e)\n", worst, SIN_COS_ABS);
     TEST_ASSERT_EQUAL_UINT32(0u, ekf_scalar_saturations());
 }
@@ -384,6 +513,8 @@ int main(void)
     RUN_TEST(test_saturation_counted_and_propagated);
     RUN_TEST(test_mul_correctly_rounded);
     RUN_TEST(test_div_correctly_rounded);
+    RUN_TEST(test_div_equals_long_division);
+    RUN_TEST(test_recip32_rsqrt32_bounds);
     RUN_TEST(test_sqrt_error_bound);
     RUN_TEST(test_sin_cos_error_bound);
     RUN_TEST(test_atan2_error_bound);

@@ -21,7 +21,7 @@ index, sparsity pattern and structural constant resolved here rather than at run
 The small operations (reset, cap, remap of one state) are short loops over a generated
 table of packed indices. The reference implementation with the same semantics is
 ``att_cov_ref.c`` (full row-major ``P`` on the generic core), selected with
-``-DATT_COV_REFERENCE=1``; the fixed-point build uses it.
+``-DATT_COV_REFERENCE=1``; the fixed-point build has its own (``att_cov_fx.c``).
 """
 
 from __future__ import annotations

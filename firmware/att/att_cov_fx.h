@@ -1,0 +1,69 @@
+/*
+ * att_cov_fx.h - internals shared by att_cov_fx.c and att_cov_fx_kernels.c, the fixed-point
+ * build's covariance (att_cov.h, ATT_COV_FX; docs/fixed_point.md, "Covariance"). Not part of
+ * the public API, not installed.
+ *
+ * P_ij = C_ij 2^(e_i + e_j - ATT_FX_CF). A variance "in the band" has C_ii in
+ * [ATT_FX_C_ONE, 2^31). Helpers take a value v and a shift sh and return round(v 2^-sh)
+ * (sh < 0: a left shift), saturated.
+ */
+#ifndef ATT_COV_FX_H
+#define ATT_COV_FX_H
+
+#include "att_cov.h"
+
+#if defined(ATT_COV_FX)
+
+#define ATT_FX_NP (ATT_N * (ATT_N + 1) / 2)
+#define ATT_FX_CF 29                             /* fraction bits of C (Q2.29) */
+#define ATT_FX_C_ONE ((int32_t)1 << ATT_FX_CF)   /* c = 1, the lower edge of the band */
+#define ATT_FX_E_MIN (-40)                       /* exponent of a zero variance, the smallest */
+#define ATT_FX_E_MAX 24                          /* variances below 4^25 (1.1e15) */
+/* Rounding allowance of a new variance, LSB of C: 32 n times the covariance's relative
+ * rounding unit (2^-27 of the scale, EKF_SCALAR_EPS), as in the reference's updates. */
+#define ATT_FX_TOL (32 * ATT_N * 4)
+
+/* Packed index of (i, j) in att_cov_t.c (symmetric). */
+extern const uint8_t att_fx_ix[ATT_N][ATT_N];
+
+/* The few-instruction helpers of the kernels' inner loops are inlined even at -Os (a call
+ * would cost more than their body on the Cortex-M3). */
+#if defined(__GNUC__)
+#define ATT_FX_INLINE static inline __attribute__((always_inline))
+#else
+#define ATT_FX_INLINE static inline
+#endif
+
+/* Bit length of v (0 for 0), of |v|. */
+#define att_fx_bitlen64 ekf_fx_bitlen64
+ATT_FX_INLINE int att_fx_abslen(int64_t v) { return ekf_fx_bitlen64((v < 0) ? (uint64_t)0 - (uint64_t)v : (uint64_t)v); }
+/* round(v 2^-sh) as a C word (saturated to +-INT32_MAX): the common case inline. */
+int32_t att_fx_to_c_any(int64_t v, int sh);
+ATT_FX_INLINE int32_t att_fx_to_c(int64_t v, int sh)
+{
+    if (sh > 0 && sh < 63) {
+        const int64_t r = (v + ((int64_t)1 << (sh - 1))) >> sh;
+        if (r <= INT32_MAX && r >= -INT32_MAX) {
+            return (int32_t)r;
+        }
+    }
+    return att_fx_to_c_any(v, sh);
+}
+/* round(v 2^-sh) as a Q29.34 value (saturated: counted, infinite). */
+ekf_scalar_t att_fx_to_q(int64_t v, int sh);
+/* The exponent that puts the variance m 2^x (m > 0) into the band. */
+int att_fx_norm_exp(uint64_t m, int x);
+/* The band's exponent of cii 2^(2 ei - 29) + m 2^x (m >= 0). */
+int att_fx_sum_exp(int32_t cii, int ei, uint64_t m, int x);
+/* State i's exponent set to en: row and column i rescaled (P the same, but for rounding). */
+void att_fx_set_exp(att_cov_t *c, int i, int en);
+/* State i back into the band if its variance is positive and below it. */
+void att_fx_renorm(att_cov_t *c, int i);
+/* floor (Q29.34) in the units of state i's C, rounded up. */
+int32_t att_fx_floor_c(const att_cov_t *c, int i, ekf_scalar_t floor);
+/* State i's variance overflowed: infinite, one saturation counted. */
+void att_fx_overflow(att_cov_t *c, int i);
+
+#endif /* ATT_COV_FX */
+
+#endif /* ATT_COV_FX_H */

@@ -1,0 +1,563 @@
+/*
+ * att_cov_fx_kernels.c - the fixed-point covariance's heavy operations (att_cov.h,
+ * ATT_COV_FX): the propagation F P F^T and the angle increments' variance, the rate noise,
+ * the scalar measurement updates (docs/fixed_point.md, "Covariance").
+ *
+ * With P = S c S (S = diag(2^e_i), c = C 2^-29):
+ *   F P F^T = S (F~ c F~^T) S, F~ = S^-1 F S: the scaled transition, one exponent per row;
+ *   an update with H: u = S H^T / 2^eta, v = c u, q = u^T c u, Sn = q + R 2^(-2 eta):
+ *   c' = c - v v^T / Sn, K = S v / (2^eta Sn).
+ * Sums of products are exact in 64 bits, every stored word rounded once; the new
+ * exponents are chosen from the new variances, so a variance that grows or shrinks by any
+ * factor keeps its 29 to 31 significant bits.
+ */
+#include "att_cov_fx.h"
+
+#if defined(ATT_COV_FX)
+
+#include <stddef.h>
+
+#include "ekf_util.h"
+
+#define NR 6 /* rows of D: ATT_PHI .. ATT_PSID */
+#define HALF32 ((int64_t)1 << 31)
+
+/* Dot product of two 9-vectors of words, exact (nine multiply-accumulates). */
+static int64_t dot9(const int32_t *a, const int32_t *b)
+{
+    return (int64_t)a[0] * b[0] + (int64_t)a[1] * b[1] + (int64_t)a[2] * b[2] + (int64_t)a[3] * b[3] +
+           (int64_t)a[4] * b[4] + (int64_t)a[5] * b[5] + (int64_t)a[6] * b[6] + (int64_t)a[7] * b[7] +
+           (int64_t)a[8] * b[8];
+}
+
+/* The words of a row of int64 values, with a common scale: w[j] = round(v[j] 2^-sh), sh
+ * putting the largest magnitude below 2^bits (the OR of the magnitudes has its bit length).
+ * Returns sh. */
+static int block_row(const int64_t *v, int32_t *w, int bits)
+{
+    uint64_t m = 0u;
+    int j, sh;
+    for (j = 0; j < ATT_N; ++j) {
+        m |= (v[j] < 0) ? (uint64_t)0 - (uint64_t)v[j] : (uint64_t)v[j];
+    }
+    sh = ekf_fx_bitlen64(m) - bits;
+    for (j = 0; j < ATT_N; ++j) {
+        w[j] = att_fx_to_c(v[j], sh);
+    }
+    return sh;
+}
+
+/* ---- propagation ---- */
+
+/* The rows of F~ = S^-1 F S (F = I + D) as words f[r][j] 2^ph[r] (|f| < 2^28). The pattern
+ * is sorted by row and has the rows ATT_PHI .. ATT_PSID (att_gen.h). */
+static void scaled_rows(const att_cov_t *c, const ekf_scalar_t d[ATT_GEN_F_NNZ], int32_t f[NR][ATT_N], int ph[NR])
+{
+    int k = 0, r;
+    for (r = 0; r < NR; ++r) {
+        const int row = ATT_PHI + r, k0 = k;
+        ekf_scalar_t diag = EKF_FX_ONE;
+        int top, j, kend;
+        for (j = 0; j < ATT_N; ++j) {
+            f[r][j] = 0;
+        }
+        for (; k < ATT_GEN_F_NNZ && att_gen_f_pattern[k].row == row; ++k) {
+            if (att_gen_f_pattern[k].col == row) {
+                diag += d[k];
+            }
+        }
+        kend = k;
+        /* F~_rj = F_rj 2^(e_j - e_r) 2^-34: the row's largest bit length with the exponents */
+        top = att_fx_abslen(diag) + c->e[row];
+        for (k = k0; k < kend; ++k) {
+            const int col = att_gen_f_pattern[k].col;
+            if (col != row && d[k] != 0) {
+                const int b = att_fx_abslen(d[k]) + c->e[col];
+                top = (b > top) ? b : top;
+            }
+        }
+        for (k = k0; k < kend; ++k) {
+            const int col = att_gen_f_pattern[k].col;
+            if (col != row) {
+                f[r][col] = att_fx_to_c(d[k], top - 28 - c->e[col]);
+            }
+        }
+        f[r][row] = att_fx_to_c(diag, top - 28 - c->e[row]);
+        ph[r] = top - 28 - EKF_FX_FRAC - c->e[row];
+    }
+}
+
+static void att_cov_propagate(att_cov_t *c, const ekf_scalar_t d[ATT_GEN_F_NNZ])
+{
+    int32_t cf[ATT_N][ATT_N]; /* C unpacked */
+    int32_t f[NR][ATT_N], a[NR][ATT_N];
+    int ph[NR], al[NR], en[NR];
+    int64_t w[ATT_N];
+    int r, l, j, k;
+
+    if (c->inf != 0u) {
+        c->inf = (uint16_t)(c->inf | 0x1F8u); /* every row of D: not finite either */
+        return;
+    }
+    scaled_rows(c, d, f, ph);
+    for (j = 0; j < ATT_N; ++j) {
+        for (k = 0; k < ATT_N; ++k) {
+            cf[j][k] = c->c[att_fx_ix[j][k]];
+        }
+    }
+    /* rows of A = F~ c, each to words with its own scale: A_rk = a[r][k] 2^al[r] */
+    for (r = 0; r < NR; ++r) {
+        for (k = 0; k < ATT_N; ++k) {
+            w[k] = dot9(f[r], cf[k]);
+        }
+        al[r] = block_row(w, a[r], 30) + ph[r] - ATT_FX_CF;
+    }
+    /* the new variances c'_rr = sum_m F~_rm A_rm and their exponents */
+    for (r = 0; r < NR; ++r) {
+        const int i = ATT_PHI + r;
+        const int64_t v = dot9(f[r], a[r]);
+        const int x = ph[r] + al[r];
+        en[r] = (v == 0) ? ATT_FX_E_MIN : att_fx_norm_exp((uint64_t)(v < 0 ? -v : v), x + 2 * c->e[i]);
+        if (en[r] < ATT_FX_E_MIN) {
+            en[r] = ATT_FX_E_MIN;
+        } else if (en[r] > ATT_FX_E_MAX) {
+            att_fx_overflow(c, i);
+            en[r] = ATT_FX_E_MAX;
+        }
+        c->c[att_fx_ix[i][i]] = att_fx_to_c(v, -(x + ATT_FX_CF + 2 * (c->e[i] - en[r])));
+    }
+    /* the rest of the new rows, in the new scales: C'_il = c'_il 2^(29 + e_i + e_l - e'_i - e'_l) */
+    for (r = 0; r < NR; ++r) {
+        const int i = ATT_PHI + r, di = c->e[i] - en[r];
+        for (l = 0; l < ATT_PHI; ++l) { /* the rates: c'_il = A_il */
+            c->c[att_fx_ix[i][l]] = att_fx_to_c(a[r][l], -(al[r] + ATT_FX_CF + di));
+        }
+        for (l = r + 1; l < NR; ++l) {
+            const int jl = ATT_PHI + l;
+            c->c[att_fx_ix[i][jl]] = att_fx_to_c(dot9(f[l], a[r]), -(ph[l] + al[r] + ATT_FX_CF + di + c->e[jl] - en[l]));
+        }
+    }
+    for (r = 0; r < NR; ++r) {
+        c->e[ATT_PHI + r] = (int8_t)en[r];
+    }
+}
+
+static void att_cov_increment_var(const att_cov_t *c, const ekf_scalar_t d[ATT_GEN_F_NNZ], ekf_scalar_t var[3])
+{
+    int k = 0, i;
+    for (i = 0; i < 3; ++i) {
+        var[i] = EKF_C(0);
+    }
+    if (c->inf != 0u) {
+        return;
+    }
+    /* the pattern is sorted by row: the quadratic form u^T c u of each angle row of D,
+     * u_a = d_a 2^(e_col) = fm_a 2^(top - 62) */
+    while (k < ATT_GEN_F_NNZ && att_gen_f_pattern[k].row <= ATT_PSI) {
+        const int row = att_gen_f_pattern[k].row;
+        int32_t fm[ATT_N];
+        uint8_t col[ATT_N];
+        int n = 0, top = INT32_MIN, a, b;
+        int64_t s = 0;
+        for (; k < ATT_GEN_F_NNZ && att_gen_f_pattern[k].row == row; ++k) {
+            if (d[k] != 0) {
+                const int bl = att_fx_abslen(d[k]) + c->e[att_gen_f_pattern[k].col];
+                top = (bl > top) ? bl : top;
+                col[n] = att_gen_f_pattern[k].col;
+                fm[n++] = (int32_t)k; /* the entry, converted below */
+            }
+        }
+        if (n == 0 || row < ATT_PHI) {
+            continue;
+        }
+        for (a = 0; a < n; ++a) {
+            fm[a] = att_fx_to_c(d[fm[a]], top - 28 - c->e[col[a]]);
+        }
+        for (a = 0; a < n; ++a) {
+            int64_t wa = 0;
+            for (b = 0; b < n; ++b) {
+                wa += (int64_t)fm[b] * c->c[att_fx_ix[col[a]][col[b]]];
+            }
+            s += (int64_t)fm[a] * att_fx_to_c(wa, 31);
+        }
+        /* var = s 2^31 2^(2 (top - 62)) 2^-29, in Q29.34 */
+        var[row - ATT_PHI] = (s > 0) ? att_fx_to_q(s, 88 - 2 * top) : EKF_C(0);
+    }
+}
+
+/* ---- process noise of the body rates ---- */
+
+void att_cov_add_rate_noise(att_cov_t *c, const ekf_scalar_t g[9], const ekf_scalar_t var[3])
+{
+    /* P += G diag(var) G^T, G = [I; 0; g]: var_j = vm_j 2^xv, g_ij = gm_ij 2^xg (common
+     * scales), the increments as exact products, the new exponents from the new variances */
+    int64_t v64[ATT_N], g64[ATT_N];
+    int32_t vm[3], gm[9], t[9];
+    int64_t de[6]; /* the Euler-rate block's increments, (0,0) (0,1) (0,2) (1,1) (1,2) (2,2) */
+    int xv, xg, en[ATT_N], i, j, k, n;
+    for (i = 0; i < ATT_N; ++i) {
+        v64[i] = (i < 3) ? ((var[i] > 0) ? var[i] : 0) : 0;
+        g64[i] = g[i];
+    }
+    if (c->inf != 0u || (v64[0] | v64[1] | v64[2]) == 0) {
+        return;
+    }
+    xv = block_row(v64, t, 30) - EKF_FX_FRAC; /* (t: scratch for the 9-wide helper) */
+    for (i = 0; i < 3; ++i) {
+        vm[i] = t[i];
+    }
+    xg = block_row(g64, gm, 30) - EKF_FX_FRAC;
+    /* t_ij = g_ij var_j in Q(xg + xv + 30); the Euler block sum_j t_ij g_kj */
+    for (i = 0; i < 9; ++i) {
+        t[i] = att_fx_to_c((int64_t)gm[i] * vm[i % 3], 30);
+    }
+    for (i = 0, n = 0; i < 3; ++i) {
+        for (k = i; k < 3; ++k, ++n) {
+            de[n] = (int64_t)t[3 * i] * gm[3 * k] + (int64_t)t[3 * i + 1] * gm[3 * k + 1] + (int64_t)t[3 * i + 2] * gm[3 * k + 2];
+        }
+    }
+    /* new exponents of the rates and the Euler rates */
+    for (i = 0; i < ATT_N; ++i) {
+        en[i] = c->e[i];
+    }
+    for (j = 0; j < 3; ++j) {
+        const int ee = (vm[j] > 0) ? att_fx_sum_exp(c->c[att_fx_ix[j][j]], c->e[j], (uint64_t)vm[j], xv) : c->e[j];
+        const int64_t dd = de[(j == 0) ? 0 : (j == 1) ? 3 : 5];
+        const int ed = (dd > 0) ? att_fx_sum_exp(c->c[att_fx_ix[6 + j][6 + j]], c->e[6 + j], (uint64_t)dd, 2 * xg + xv + 30)
+                                : c->e[6 + j];
+        en[j] = (ee > c->e[j]) ? ee : c->e[j];
+        en[6 + j] = (ed > c->e[6 + j]) ? ed : c->e[6 + j];
+    }
+    for (i = 0; i < ATT_N; ++i) {
+        if (en[i] > ATT_FX_E_MAX) {
+            att_fx_overflow(c, i);
+            return;
+        }
+        att_fx_set_exp(c, i, en[i]);
+    }
+    /* the increments in the new scales: 2^(29 - e'_i - e'_j) */
+    for (j = 0; j < 3; ++j) {
+        int32_t *p = &c->c[att_fx_ix[j][j]];
+        *p = att_fx_to_c((int64_t)*p + att_fx_to_c(vm[j], -(xv + ATT_FX_CF - 2 * en[j])), 0);
+        for (i = 0; i < 3; ++i) {
+            p = &c->c[att_fx_ix[6 + i][j]];
+            *p = att_fx_to_c((int64_t)*p + att_fx_to_c((int64_t)gm[3 * i + j] * vm[j], -(xg + xv + ATT_FX_CF - en[6 + i] - en[j])), 0);
+        }
+    }
+    for (i = 0, n = 0; i < 3; ++i) {
+        for (k = i; k < 3; ++k, ++n) {
+            int32_t *p = &c->c[att_fx_ix[6 + i][6 + k]];
+            *p = att_fx_to_c((int64_t)*p + att_fx_to_c(de[n], -(2 * xg + xv + 30 + ATT_FX_CF - en[6 + i] - en[6 + k])), 0);
+        }
+    }
+}
+
+/* ---- the prediction ---- */
+
+ekf_status_t att_cov_predict(att_cov_t *c, const ekf_scalar_t d1[ATT_GEN_F1_NNZ], const ekf_scalar_t d2[ATT_GEN_F2_NNZ],
+                             const ekf_scalar_t var[3], ekf_scalar_t inc_var[3])
+{
+    /* The kernels above work on the whole transition F = F2 F1 (one rounding per stored
+     * word for the whole congruence, which the 32-bit words need), so the factors are
+     * multiplied back: D = F - I = D1 + D2 + D2 D1 on att_gen_f_pattern (D1 has the angle
+     * rows, D2 the Euler-rate rows; the generator checks F2 F1 = F). The rate noise then
+     * enters with G = F2 [I; 0; 0] = [I; 0; W+], whose Euler block is D2's rate columns:
+     * F2 (F1 P F1^T + diag(var, 0)) F2^T = F P F^T + G diag(var) G^T. */
+    ekf_scalar_t m1[3][ATT_N], m2[3][ATT_N]; /* D1's angle rows, D2's Euler-rate rows */
+    ekf_scalar_t d[ATT_GEN_F_NNZ], g[9];
+    int k, r, col, m;
+    if (!ekf_all_finite(d1, ATT_GEN_F1_NNZ) || !ekf_all_finite(d2, ATT_GEN_F2_NNZ)) {
+        return EKF_ERR_NUMERIC;
+    }
+    for (r = 0; r < 3; ++r) {
+        for (col = 0; col < ATT_N; ++col) {
+            m1[r][col] = m2[r][col] = EKF_C(0);
+        }
+    }
+    for (k = 0; k < ATT_GEN_F1_NNZ; ++k) {
+        m1[att_gen_f1_pattern[k].row - ATT_PHI][att_gen_f1_pattern[k].col] = d1[k];
+    }
+    for (k = 0; k < ATT_GEN_F2_NNZ; ++k) {
+        m2[att_gen_f2_pattern[k].row - ATT_PHID][att_gen_f2_pattern[k].col] = d2[k];
+    }
+    for (k = 0; k < ATT_GEN_F_NNZ; ++k) {
+        const int row = att_gen_f_pattern[k].row;
+        col = att_gen_f_pattern[k].col;
+        if (row <= ATT_PSI) {
+            d[k] = m1[row - ATT_PHI][col];
+        } else {
+            ekf_scalar_t v = m2[row - ATT_PHID][col];
+            for (m = 0; m < 3; ++m) {
+                v = ekf_mac(v, m2[row - ATT_PHID][ATT_PHI + m], m1[m][col]);
+            }
+            d[k] = v;
+        }
+    }
+    for (r = 0; r < 3; ++r) {
+        for (m = 0; m < 3; ++m) {
+            g[r * 3 + m] = m2[r][ATT_P + m];
+        }
+    }
+    att_cov_increment_var(c, d, inc_var);
+    att_cov_propagate(c, d);
+    att_cov_add_rate_noise(c, g, var);
+    return EKF_OK;
+}
+
+/* ---- measurement updates ---- */
+
+/* a / b (a >= 0, b > 0, Q29.34) to 2^-31 of the quotient, from the reciprocal of b's top word:
+ * the gate's test ratio (a diagnostic and a comparison with 1). */
+static ekf_scalar_t ratio_q(ekf_scalar_t a, ekf_scalar_t b)
+{
+    const int la = ekf_fx_bitlen64((uint64_t)a), lb = ekf_fx_bitlen64((uint64_t)b);
+    const uint32_t ah = (uint32_t)att_fx_to_c(a, la - 31), bh = (uint32_t)((uint64_t)b << (64 - lb) >> 32);
+    /* a / b = ah 2^(la - 31) / (bh 2^(lb - 32)); ah / bh = ah recip(bh) 2^-63 */
+    return att_fx_to_q((int64_t)(((uint64_t)ah * ekf_fx_recip32(bh)) >> 32), -(la - 31 - (lb - 32) - 31 + EKF_FX_FRAC));
+}
+
+/* The gate of ekf_update_scalar (ekf.h) on the innovation nu and its variance s. */
+static ekf_status_t gate_test(ekf_scalar_t nu, ekf_scalar_t s, ekf_scalar_t gate, ekf_innov_t *info)
+{
+    if (gate > EKF_C(0)) {
+        const ekf_scalar_t nu2 = ekf_sq(nu);
+        const ekf_scalar_t lim = ekf_mul(ekf_sq(gate), s);
+        const ekf_scalar_t ratio = !ekf_isfinite(nu2) || !ekf_isfinite(lim) ? EKF_FX_INF
+                                   : (lim > EKF_C(0))                      ? ((nu2 > 0) ? ratio_q(nu2, lim) : EKF_C(0))
+                                   : ((nu2 > EKF_C(0)) ? EKF_C(1e6) : EKF_C(0));
+        if (info != NULL) {
+            info->test_ratio = ratio;
+        }
+        if (!ekf_isfinite(ratio) || ratio > EKF_C(1)) {
+            return EKF_GATED;
+        }
+    }
+    return EKF_OK;
+}
+
+/* round(v 2^-s) for a non-negative 64-bit v and any s, saturated at 2^62. */
+static int64_t shift_pos(int64_t v, int s)
+{
+    if (s > 0) {
+        return (s >= 63) ? 0 : (v + ((int64_t)1 << (s - 1))) >> s;
+    }
+    if (v == 0 || s == 0) {
+        return v;
+    }
+    return (-s >= 62 || ekf_fx_bitlen64((uint64_t)v) - s > 62) ? ((int64_t)1 << 62) : (int64_t)((uint64_t)v << -s);
+}
+
+/* The update with v = c u (Q2.29), q = u^T c u (Q2.29, in [1, 4), or 0 with v = 0), the
+ * measurement's scale 2^eta, and k the measured state of a unit row (its row and column in
+ * closed form, row k of c taken in the scale 2^eta) or -1. The checks of ekf_update_scalar,
+ * in its order, before anything is written. */
+static ekf_status_t update(att_cov_t *c, ekf_scalar_t x[ATT_N], const int32_t v[ATT_N], int32_t q, int eta, int k,
+                           ekf_scalar_t nu, ekf_scalar_t r_var, ekf_scalar_t gate, ekf_scalar_t var_floor,
+                           ekf_innov_t *info)
+{
+    int32_t T[ATT_N], dg[ATT_N];
+    ekf_scalar_t xn[ATT_N], s_q;
+    const int ef = (var_floor > 0) ? att_fx_norm_exp((uint64_t)var_floor, -EKF_FX_FRAC) : ATT_FX_E_MIN;
+    /* Sn = q 2^-29 + r 2^(-34 - 2 eta) = (qu + ru) 2^y, y putting the larger term below 2^61
+     * (R can exceed H P H^T by any factor: a row H nearly orthogonal to gravity) */
+    const int lq = ekf_fx_bitlen64((uint64_t)(uint32_t)q) - ATT_FX_CF, lr = ekf_fx_bitlen64((uint64_t)r_var) - EKF_FX_FRAC - 2 * eta;
+    const int y = ((lq > lr) ? lq : lr) - 61;
+    const int64_t ru = shift_pos(r_var, EKF_FX_FRAC + 2 * eta + y);
+    const uint64_t sn = (uint64_t)shift_pos(q, ATT_FX_CF + y) + (uint64_t)ru;
+    const int bs = ekf_fx_bitlen64(sn);
+    /* Sn = sm 2^xs (sm the top 32 bits), gamma = 1 / Sn = gm 2^(-63 - xs) */
+    const uint32_t sm = (uint32_t)((bs >= 32) ? sn >> (bs - 32) : sn << (32 - bs));
+    const int xs = y + bs - 32;
+    const uint32_t gm = ekf_fx_recip32(sm);
+    /* gamma in Q1.30 (gamma <= 1 while Sn >= q >= 1; 0 for q = 0, where v = 0) */
+    const int g30 = 33 + xs;
+    const int32_t gamma30 = (q > 0 && g30 >= 1 && g30 < 32) ? (int32_t)(gm >> g30) : 0;
+    ekf_status_t st;
+    int i, j;
+
+    /* S in the scalar: H P H^T rounded to it, plus R (exactly: S >= R whenever q >= 0) */
+    s_q = ekf_fx_add(att_fx_to_q(q, ATT_FX_CF - EKF_FX_FRAC - 2 * eta), r_var);
+    if (info != NULL) {
+        info->innovation = nu;
+        info->variance = s_q;
+    }
+    if (!ekf_isfinite(s_q) || !(s_q >= r_var) || !(s_q > EKF_C(0))) {
+        return EKF_ERR_NUMERIC;
+    }
+    st = gate_test(nu, s_q, gate, info);
+    if (st != EKF_OK) {
+        return st;
+    }
+    if (c->inf != 0u) {
+        return EKF_ERR_NUMERIC; /* a new variance would not be finite */
+    }
+    /* T = gamma v in Q2.30, the new variances c_ii - T_i v_i, the new state */
+    for (i = 0; i < ATT_N; ++i) {
+        T[i] = (int32_t)(((int64_t)v[i] * gamma30 + (1 << 28)) >> 29);
+        dg[i] = (int32_t)((uint32_t)c->c[att_fx_ix[i][i]] - ((uint32_t)(((int64_t)T[i] * v[i] + HALF32) >> 32) << 2));
+        if (i != k && dg[i] < -ATT_FX_TOL) {
+            return EKF_ERR_NUMERIC; /* indefinite beyond rounding: no floor hides it */
+        }
+    }
+    {
+        /* K_i nu = 2^(e_i - eta) v_i gamma nu, gamma nu = wv 2^xw: the product v_i wv in
+         * Q29.34 after a shift of xw - 29 + e_i - eta + 34 */
+        const int nb = ekf_fx_bitlen64((nu < 0) ? (uint64_t)0 - (uint64_t)nu : (uint64_t)nu);
+        const int32_t nm = att_fx_to_c(nu, nb - 31);
+        const int32_t wv = (int32_t)(((int64_t)nm * gm) >> 32);
+        const int base = (-63 - xs + (nb - 31 - EKF_FX_FRAC) + 32) - ATT_FX_CF - eta + EKF_FX_FRAC;
+        ekf_scalar_t bad = EKF_C(0);
+        for (i = 0; i < ATT_N; ++i) {
+            const int sh = -(base + ((i == k) ? eta : c->e[i]));
+            const int64_t p = (int64_t)v[i] * wv;
+            const ekf_scalar_t dx = (sh > 0 && sh < 63) ? (p + ((int64_t)1 << (sh - 1))) >> sh : att_fx_to_q(p, sh);
+            xn[i] = ekf_fx_add(x[i], dx);
+            bad = ekf_finite_acc(bad, xn[i]);
+        }
+        if (!(bad == EKF_C(0))) {
+            return EKF_ERR_NUMERIC;
+        }
+    }
+    /* write: c - T v^T on the upper triangle (the diagonal as checked), in Q2.29 from the high
+     * word of the Q4.59 product, rounded to nearest: two bits coarser than C's last one (2^-27
+     * of the scale per update, unbiased; a rounding toward -inf would add a positive rank-one
+     * bias that correlates every pair of states, an unobserved heading with the tilt too) */
+    for (i = 0; i < ATT_N; ++i) {
+        int32_t *row = &c->c[att_fx_ix[i][i]];
+        const int32_t ti = T[i];
+        x[i] = xn[i];
+        row[0] = dg[i];
+        for (j = i + 1; j < ATT_N; ++j) {
+            row[j - i] = (int32_t)((uint32_t)row[j - i] - ((uint32_t)(((int64_t)ti * v[j] + HALF32) >> 32) << 2));
+        }
+    }
+    if (k >= 0) {
+        /* row and column k: c'_ik = c_ik rho, rho = r 2^(-2 eta) / Sn (no cancellation), from r's
+         * top 32 bits rm = r 2^(32 - bq) and gamma = gm 2^(-63 - xs); in the
+         * scale where c'_kk is in the band, or the floor's if the floor is larger */
+        const int bq = ekf_fx_bitlen64((uint64_t)r_var);
+        const uint32_t rm = (uint32_t)((bq >= 32) ? (uint64_t)r_var >> (bq - 32) : (uint64_t)r_var << (32 - bq));
+        const int64_t rho = (int64_t)(((uint64_t)rm * gm) >> 33); /* < 2^31 */
+        const int xr = bq - 96 - 2 * eta - xs;                   /* rho (real) = rho 2^xr */
+        const int64_t pk = (int64_t)v[k] * rho;                     /* c'_kk = pk 2^(xr - 29) */
+        int ek = (pk <= 0) ? ATT_FX_E_MIN : att_fx_norm_exp((uint64_t)pk, xr - ATT_FX_CF + 2 * eta);
+        ek = (ef > ek) ? ef : ek;
+        ek = (ek < ATT_FX_E_MIN) ? ATT_FX_E_MIN : ek;
+        for (i = 0; i < ATT_N; ++i) {
+            c->c[att_fx_ix[i][k]] = att_fx_to_c((int64_t)v[i] * rho, -(xr + ((i == k) ? 2 : 1) * (eta - ek)));
+        }
+        c->e[k] = (int8_t)ek;
+    }
+    /* the floor (a variance that can be below it: below the band, or in a scale at most the
+     * floor's) and the band */
+    for (i = 0; i < ATT_N; ++i) {
+        int32_t *d = &c->c[att_fx_ix[i][i]];
+        if (*d < ATT_FX_C_ONE || c->e[i] <= ef) {
+            const int32_t fl = att_fx_floor_c(c, i, var_floor);
+            *d = (*d < fl) ? fl : *d;
+            att_fx_renorm(c, i);
+        }
+    }
+    return EKF_OK;
+}
+
+ekf_status_t att_cov_update_unit(att_cov_t *c, ekf_scalar_t x[ATT_N], int idx, ekf_scalar_t nu, ekf_scalar_t r_var,
+                                 ekf_scalar_t gate, ekf_scalar_t var_floor, ekf_innov_t *info)
+{
+    int32_t v[ATT_N];
+    int i;
+    if (info != NULL) {
+        info->innovation = EKF_C(0);
+        info->variance = EKF_C(0);
+        info->test_ratio = EKF_C(0);
+    }
+    if (x == NULL) {
+        return EKF_ERR_NULL;
+    }
+    if (!ekf_isfinite(nu) || !ekf_isfinite(r_var)) {
+        return EKF_ERR_NOT_FINITE;
+    }
+    if (!(r_var > EKF_C(0))) {
+        return EKF_ERR_RANGE;
+    }
+    if ((c->inf & (1u << idx)) != 0u || c->c[att_fx_ix[idx][idx]] < 0) {
+        if (info != NULL) {
+            info->innovation = nu;
+            info->variance = ((c->inf & (1u << idx)) != 0u) ? EKF_FX_INF : r_var;
+        }
+        return EKF_ERR_NUMERIC; /* S not finite, or H P H^T < 0 */
+    }
+    {
+        /* q = c_kk in the band: row k taken in the scale 2^eta (a left shift, exact) */
+        const int32_t ckk = c->c[att_fx_ix[idx][idx]];
+        int m = 0;
+        if (ckk > 0 && ckk < ATT_FX_C_ONE) {
+            m = c->e[idx] - att_fx_norm_exp((uint64_t)ckk, 2 * c->e[idx] - ATT_FX_CF);
+        }
+        for (i = 0; i < ATT_N; ++i) {
+            v[i] = att_fx_to_c(c->c[att_fx_ix[i][idx]], (i == idx) ? -2 * m : -m);
+        }
+        return update(c, x, v, v[idx], c->e[idx] - m, idx, nu, r_var, gate, var_floor, info);
+    }
+}
+
+ekf_status_t att_cov_update_tilt(att_cov_t *c, ekf_scalar_t x[ATT_N], ekf_scalar_t h_phi, ekf_scalar_t h_theta,
+                                 ekf_scalar_t nu, ekf_scalar_t r_var, ekf_scalar_t gate, ekf_scalar_t var_floor,
+                                 ekf_innov_t *info)
+{
+    int64_t v64[ATT_N];
+    int32_t v[ATT_N], u3, u4;
+    int eta, i, b3, b4, m;
+    int64_t q64;
+    if (info != NULL) {
+        info->innovation = EKF_C(0);
+        info->variance = EKF_C(0);
+        info->test_ratio = EKF_C(0);
+    }
+    if (x == NULL) {
+        return EKF_ERR_NULL;
+    }
+    if (!ekf_isfinite(nu) || !ekf_isfinite(r_var) || !ekf_isfinite(h_phi) || !ekf_isfinite(h_theta)) {
+        return EKF_ERR_NOT_FINITE;
+    }
+    if (!(r_var > EKF_C(0))) {
+        return EKF_ERR_RANGE;
+    }
+    if ((c->inf & ((1u << ATT_PHI) | (1u << ATT_THETA))) != 0u) {
+        if (info != NULL) {
+            info->innovation = nu;
+            info->variance = EKF_FX_INF;
+        }
+        return EKF_ERR_NUMERIC;
+    }
+    /* u = S H^T / 2^eta in Q0.31 with |u| < 1/4 */
+    b3 = (h_phi != 0) ? att_fx_abslen(h_phi) + c->e[ATT_PHI] : INT32_MIN;
+    b4 = (h_theta != 0) ? att_fx_abslen(h_theta) + c->e[ATT_THETA] : INT32_MIN;
+    if (b3 == INT32_MIN && b4 == INT32_MIN) {
+        return update(c, x, (const int32_t[ATT_N]){0}, 0, 0, -1, nu, r_var, gate, var_floor, info);
+    }
+    eta = ((b3 > b4) ? b3 : b4) - EKF_FX_FRAC + 2;
+    u3 = att_fx_to_c(h_phi, EKF_FX_FRAC + eta - 31 - c->e[ATT_PHI]);
+    u4 = att_fx_to_c(h_theta, EKF_FX_FRAC + eta - 31 - c->e[ATT_THETA]);
+    for (i = 0; i < ATT_N; ++i) {
+        v64[i] = (int64_t)c->c[att_fx_ix[i][ATT_PHI]] * u3 + (int64_t)c->c[att_fx_ix[i][ATT_THETA]] * u4; /* Q2.60 */
+    }
+    /* q = u^T c u, then u (and v) scaled by 2^m so that q is in [1, 4) */
+    q64 = (int64_t)u3 * att_fx_to_c(v64[ATT_PHI], 31) + (int64_t)u4 * att_fx_to_c(v64[ATT_THETA], 31); /* Q2.60 */
+    if (q64 < 0) {
+        if (info != NULL) {
+            info->innovation = nu;
+            info->variance = r_var;
+        }
+        return EKF_ERR_NUMERIC; /* H P H^T < 0 */
+    }
+    m = (q64 > 0) ? (62 - att_fx_bitlen64((uint64_t)q64)) / 2 : 0;
+    for (i = 0; i < ATT_N; ++i) {
+        v[i] = att_fx_to_c(v64[i], 31 - m);
+    }
+    return update(c, x, v, att_fx_to_c(q64, 31 - 2 * m), eta - m, -1, nu, r_var, gate, var_floor, info);
+}
+
+#else
+typedef int att_cov_fx_kernels_not_selected_t; /* (ISO C: a translation unit declares something) */
+#endif
