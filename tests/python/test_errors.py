@@ -279,6 +279,8 @@ def test_usage_errors_exit_2(files, tmp_path, capsys):
         (["sim", tmp_path / "x.csv", "--rest", "70"], "--rest must be shorter than --duration"),
         (["sim", tmp_path / "x.csv", "--seed", "-1"], "--seed must be an integer >= 0"),
         (["sim", tmp_path / "x.csv", "--pause-probability", "2"], "--pause-probability must be in 0..1"),
+        (["replay", rec, "-i", "socketcan"], "-i socketcan needs -c/--channel"),
+        (["record", "-i", "socketcan", "--stats", tmp_path / "s.json"], "-i socketcan needs -c/--channel"),
     ]
     for argv, *fragments in cases:
         check(capsys, argv, 2, *fragments, workdir=tmp_path)

@@ -312,7 +312,7 @@ def run(args) -> int:
     if not (args.output or args.csv or args.inputs_csv or args.stats):
         raise UsageError("nothing to write: give -o, --csv, --inputs-csv and/or --stats")
     if args.interface is not None:
-        check_interface(args.interface)
+        check_interface(args.interface, args.channel)
     with Outputs() as out:
         out.inputs([args.from_log])
         if args.output:
