@@ -338,3 +338,15 @@ def test_internal_errors_are_one_line(monkeypatch, files, capsys):
     check(capsys, ["replay", files / "rec.csv", "--to-log", files / "never.log"], 1,
           "internal error RuntimeError: something unexpected")
     assert not (files / "never.log").exists()
+
+
+def test_log_format_python_can_cannot_write_here(files, tmp_path, capsys):
+    """A log format python-can lists but cannot write without an optional package (.mf4 needs
+    asammdf): a usage error before any work, for replay --to-log and record -o alike."""
+    import importlib.util
+    if importlib.util.find_spec("asammdf") is not None:
+        pytest.skip("asammdf is installed: python-can writes .mf4 here")
+    check(capsys, ["replay", files / "rec.csv", "--to-log", tmp_path / "x.mf4"], 2,
+          "x.mf4: --to-log: python-can cannot write '.mf4' logs here", "asammdf", workdir=tmp_path)
+    check(capsys, ["record", "--from-log", files / "in.log", "-o", tmp_path / "x.mf4"], 2,
+          "x.mf4: -o: python-can cannot write '.mf4' logs here", workdir=tmp_path)
