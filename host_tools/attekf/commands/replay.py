@@ -79,7 +79,7 @@ def add_arguments(p) -> None:
     p.add_argument("input", help="recording (.csv, .hdf5, .h5) or CAN log (.log, .asc, .blf)")
     out = p.add_argument_group("destination (one of)")
     out.add_argument("-i", "--interface", help="python-can interface: socketcan, virtual, ...")
-    out.add_argument("-c", "--channel", help="channel of the interface (vcan0, can0, ...)")
+    out.add_argument("-c", "--channel", help="channel of the interface (vcan0, can0, ...; needed by all but virtual)")
     out.add_argument("--bitrate", type=int, help="bitrate, for interfaces that set it")
     out.add_argument("--to-log", metavar="FILE",
                      help="write the frames to a CAN log instead (.log, .asc, .blf, ...; python-can "
