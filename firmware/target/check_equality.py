@@ -17,7 +17,7 @@ if equal within the tolerance, 1 if not, 2 on a usage or run error.
 Used by ctest in the cross builds (test firmware_equals_host); by hand:
     PYTHONPATH=host_tools .venv/bin/python firmware/target/check_equality.py \\
         --firmware build/cortex-m4f/firmware/target/attekf_fw.elf \\
-        --host build/host/firmware/target/attekf-fw-host --workdir /tmp/eq
+        --host build/host/firmware/target/attekf-fw-host --workdir out/equality
 """
 import argparse
 import csv

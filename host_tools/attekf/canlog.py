@@ -62,7 +62,25 @@ def check_log_name(path: str, what: str, output: bool = False) -> str:
         err = UsageError if output else InputError
         raise err(f"{path}: {what}: unknown CAN log format '{ext or '(none)'}' "
                   f"(expected {', '.join(known)})")
+    if output:
+        problem = _writer_problem(ext)
+        if problem:
+            raise UsageError(f"{path}: {what}: python-can cannot write '{ext}' logs here: {problem}")
     return ext
+
+
+def _writer_problem(ext: str) -> Optional[str]:
+    """Why python-can's writer for `ext` cannot be used (some need an optional package, e.g.
+    .mf4 asammdf), found by opening one on a scratch file before any work; None if it can."""
+    import tempfile
+
+    import can
+    with tempfile.TemporaryDirectory(prefix="attekf-logprobe-") as d:
+        try:
+            can.Logger(os.path.join(d, "probe" + ext)).stop()
+        except Exception as e:   # writers raise NotImplementedError, ImportError, ValueError, ...
+            return " ".join(str(e).split()) or type(e).__name__
+    return None
 
 
 def read_frames(path: str, stop: Optional[List[bool]] = None,

@@ -270,9 +270,20 @@ def test_usage_errors_exit_2(files, tmp_path, capsys):
         (["record", "--from-log", files / "in.log"], "nothing to write"),
         (["eval", rec, "--bogus"], "unrecognized arguments: --bogus"),
         (["sim", tmp_path / "x.txt"], "unknown recording format '.txt'"),
+        # a recording is built in memory: its size is bounded before any work
+        (["sim", tmp_path / "x.csv", "--duration", "1e9"],
+         "--duration 1e+09 s at --rate 100 Hz is 1e+11 samples: at most 10,000,000 in one recording"),
+        (["sim", tmp_path / "x.csv", "--rate", "1e12"], "--rate 1e+12 Hz", "at most 10,000,000"),
+        (["sim", tmp_path / "x.csv", "--lin-acc", "1", "--disturbance-every", "1e-9",
+          "--disturbance-length", "1e-9"], "--duration / --disturbance-every", "at most 100,000"),
+        (["sim", tmp_path / "x.csv", "--rest", "70"], "--rest must be shorter than --duration"),
+        (["sim", tmp_path / "x.csv", "--seed", "-1"], "--seed must be an integer >= 0"),
+        (["sim", tmp_path / "x.csv", "--pause-probability", "2"], "--pause-probability must be in 0..1"),
+        (["replay", rec, "-i", "socketcan"], "-i socketcan needs -c/--channel"),
+        (["record", "-i", "socketcan", "--stats", tmp_path / "s.json"], "-i socketcan needs -c/--channel"),
     ]
-    for argv, fragment in cases:
-        check(capsys, argv, 2, fragment, workdir=tmp_path)
+    for argv, *fragments in cases:
+        check(capsys, argv, 2, *fragments, workdir=tmp_path)
 
 
 def test_hdf5_of_the_wrong_kind(tmp_path, capsys):
@@ -327,3 +338,15 @@ def test_internal_errors_are_one_line(monkeypatch, files, capsys):
     check(capsys, ["replay", files / "rec.csv", "--to-log", files / "never.log"], 1,
           "internal error RuntimeError: something unexpected")
     assert not (files / "never.log").exists()
+
+
+def test_log_format_python_can_cannot_write_here(files, tmp_path, capsys):
+    """A log format python-can lists but cannot write without an optional package (.mf4 needs
+    asammdf): a usage error before any work, for replay --to-log and record -o alike."""
+    import importlib.util
+    if importlib.util.find_spec("asammdf") is not None:
+        pytest.skip("asammdf is installed: python-can writes .mf4 here")
+    check(capsys, ["replay", files / "rec.csv", "--to-log", tmp_path / "x.mf4"], 2,
+          "x.mf4: --to-log: python-can cannot write '.mf4' logs here", "asammdf", workdir=tmp_path)
+    check(capsys, ["record", "--from-log", files / "in.log", "-o", tmp_path / "x.mf4"], 2,
+          "x.mf4: -o: python-can cannot write '.mf4' logs here", workdir=tmp_path)

@@ -146,8 +146,18 @@ def test_flags_are_every_att_flag(repo_root):
     text = (repo_root / "firmware" / "att" / "att.h").read_text()
     c_flags = {m.group(1): 1 << int(m.group(2))
                for m in re.finditer(r"#define ATT_FLAG_(\w+)\s+\(1u << (\d+)\)", text)}
+    # every ATT_FLAG_ define is a single bit in that form, so none escapes the pattern above
+    assert len(c_flags) == len(re.findall(r"#define ATT_FLAG_\w+", text)), "an ATT_FLAG_ the pattern missed"
     assert c_flags and {f.name: int(f) for f in attekf.Flag} == c_flags
     assert native.ATT_FLAGS == c_flags
+
+
+def test_status_codes_match_ekf_h(repo_root):
+    text = (repo_root / "firmware" / "ekf" / "ekf.h").read_text()
+    c_codes = {m.group(1): int(m.group(2)) for m in re.finditer(r"\b(EKF_[A-Z_]+) = (\d+),?\s", text)}
+    assert "EKF_SKIPPED" in c_codes
+    for name in ("EKF_OK", "EKF_ERR_NOT_INITIALISED", "EKF_GATED", "EKF_SKIPPED"):
+        assert getattr(native, name) == c_codes[name], name
 
 
 @pytest.mark.parametrize("scalar", ["float", "double", "fixed"])

@@ -156,6 +156,6 @@ def test_sim_command_writes_csv_and_hdf5(tmp_path, capsys):
 def test_sim_command_bad_arguments(tmp_path, capsys):
     assert main(["sim", str(tmp_path / "a.csv"), "--rate", "-1"]) == 2
     err = capsys.readouterr().err
-    assert "rate_hz must be > 0" in err and err.count("\n") == 1
+    assert "--rate must be > 0 (got -1.0)" in err and err.count("\n") == 1   # the option as typed
     assert main(["sim", str(tmp_path / "a.txt")]) == 2
     assert "unknown recording format" in capsys.readouterr().err

@@ -55,7 +55,7 @@ SO_RCVBUFFORCE = getattr(socket, "SO_RCVBUFFORCE", 33)
 def add_arguments(p) -> None:
     src = p.add_argument_group("source (one of)")
     src.add_argument("-i", "--interface", help="python-can interface: socketcan, virtual, ...")
-    src.add_argument("-c", "--channel", help="channel (vcan0, can0, ...)")
+    src.add_argument("-c", "--channel", help="channel (vcan0, can0, ...; needed by all but virtual)")
     src.add_argument("--bitrate", type=nonneg_int, help="bitrate, for interfaces that set it")
     src.add_argument("--from-log", metavar="FILE", help="decode an existing CAN log instead of a bus")
     p.add_argument("-o", "--output", metavar="LOG", help="log every frame to this file")
@@ -312,7 +312,7 @@ def run(args) -> int:
     if not (args.output or args.csv or args.inputs_csv or args.stats):
         raise UsageError("nothing to write: give -o, --csv, --inputs-csv and/or --stats")
     if args.interface is not None:
-        check_interface(args.interface)
+        check_interface(args.interface, args.channel)
     with Outputs() as out:
         out.inputs([args.from_log])
         if args.output:

@@ -79,7 +79,7 @@ def add_arguments(p) -> None:
     p.add_argument("input", help="recording (.csv, .hdf5, .h5) or CAN log (.log, .asc, .blf)")
     out = p.add_argument_group("destination (one of)")
     out.add_argument("-i", "--interface", help="python-can interface: socketcan, virtual, ...")
-    out.add_argument("-c", "--channel", help="channel of the interface (vcan0, can0, ...)")
+    out.add_argument("-c", "--channel", help="channel of the interface (vcan0, can0, ...; needed by all but virtual)")
     out.add_argument("--bitrate", type=int, help="bitrate, for interfaces that set it")
     out.add_argument("--to-log", metavar="FILE",
                      help="write the frames to a CAN log instead (.log, .asc, .blf, ...; python-can "
@@ -228,19 +228,29 @@ class SendStats:
                 "first_failure_s": self.first_failure_s, "last_failure_s": self.last_failure_s}
 
 
-def check_interface(interface: str) -> None:
-    """UsageError for an interface name python-can does not know."""
+def check_interface(interface: str, channel: Optional[str] = None) -> None:
+    """UsageError for an interface name python-can does not know, or one without a channel:
+    only `virtual` has a usable default (socketcan without one would bind to every CAN
+    interface, where nothing can be sent); a channel in python-can's own configuration
+    (CAN_CHANNEL, ~/.canrc) counts as given."""
     import can
     if interface not in can.VALID_INTERFACES:
         raise UsageError(f"-i {interface}: unknown python-can interface (known: "
                          f"{', '.join(sorted(can.VALID_INTERFACES))})")
+    if channel is None and interface != "virtual":
+        try:
+            configured = can.util.load_config(config={"interface": interface}).get("channel")
+        except Exception:   # a malformed python-can configuration: as if none
+            configured = None
+        if configured in (None, ""):
+            raise UsageError(f"-i {interface} needs -c/--channel (the CAN interface, e.g. vcan0 or can0)")
 
 
 def open_bus(interface: str, channel: Optional[str], bitrate: Optional[int] = None):
     """A python-can bus; UsageError for an unknown interface, DeviceError when it cannot be
     opened (one line each)."""
     import can
-    check_interface(interface)
+    check_interface(interface, channel)
     kwargs = {"interface": interface}
     if channel is not None:
         kwargs["channel"] = channel
@@ -251,7 +261,7 @@ def open_bus(interface: str, channel: Optional[str], bitrate: Optional[int] = No
     except Exception as e:  # interfaces raise CanError, OSError, ValueError, ImportError, ...
         hint = ""
         if getattr(e, "errno", None) == errno.EAFNOSUPPORT:
-            hint = " (this kernel has no CAN support: run under user-mode Linux, docs/hil.md)"
+            hint = " (this kernel has no CAN support: run in a guest with vcan0, hal/tools/vcan_run.py, docs/hil.md)"
         raise DeviceError(f"cannot open {interface} channel {channel}: {e or type(e).__name__}{hint}") from None
 
 
@@ -398,7 +408,7 @@ def run(args) -> int:
     if args.to_log is not None and args.loop == 0:
         raise UsageError("--loop 0 (forever) cannot go to a file")
     if args.interface is not None:
-        check_interface(args.interface)
+        check_interface(args.interface, args.channel)
     with Outputs() as out:
         out.inputs([args.input])
         if args.to_log is not None:

@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 
 from . import finite_float
 from ..errors import UsageError
 from ..io import write_recording
 from ..outputs import Outputs
 from ..progress import bar
-from ..sim import SimConfig, simulate
+from ..sim import MAX_SAMPLES, SimConfig, simulate
 
 NAME = "sim"
 HELP = "generate a synthetic IMU recording with known truth (CSV or HDF5)"
@@ -32,7 +33,8 @@ examples:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     d = SimConfig()
     p.add_argument("output", help="file to write (.csv, .hdf5 or .h5)")
-    p.add_argument("--duration", type=finite_float, default=d.duration_s, metavar="S", help="length, s (default %(default)s)")
+    p.add_argument("--duration", type=finite_float, default=d.duration_s, metavar="S",
+                   help=f"length, s (default %(default)s; --duration x --rate at most {MAX_SAMPLES:,} samples)")
     p.add_argument("--rate", type=finite_float, default=d.rate_hz, metavar="HZ", help="sampling rate, Hz (default %(default)s)")
     p.add_argument("--seed", type=int, default=d.seed, help="random seed (default %(default)s)")
     p.add_argument("--rest", type=finite_float, default=d.initial_rest_s, metavar="S",
@@ -71,7 +73,24 @@ def config_from_args(args: argparse.Namespace) -> SimConfig:
                      disturbance_every_s=args.disturbance_every, disturbance_s=args.disturbance_length)
 
 
+# SimConfig field -> the option that sets it, so that a refused value is named as typed
+OPTIONS = {"seed": "--seed", "duration_s": "--duration", "rate_hz": "--rate", "initial_rest_s": "--rest",
+           "max_tilt_deg": "--max-tilt", "pause_probability": "--pause-probability",
+           "gyro_noise_rad_s": "--gyro-noise", "gyro_bias_rad_s": "--gyro-bias",
+           "acc_noise_m_s2": "--acc-noise", "mag_noise_uT": "--mag-noise", "field_uT": "--field",
+           "dip_deg": "--dip", "lin_acc_m_s2": "--lin-acc", "mag_disturbance_uT": "--mag-disturbance",
+           "disturbance_every_s": "--disturbance-every", "disturbance_s": "--disturbance-length"}
+
+
+def _option_names(text: str) -> str:
+    return re.sub(r"\b(" + "|".join(OPTIONS) + r")\b", lambda m: OPTIONS[m.group(0)], text)
+
+
 def run(args: argparse.Namespace) -> int:
+    if args.duration > 0 and args.rate > 0 and args.duration * args.rate > MAX_SAMPLES:
+        raise UsageError(f"--duration {args.duration:g} s at --rate {args.rate:g} Hz is "
+                         f"{args.duration * args.rate:.4g} samples: at most {MAX_SAMPLES:,} in one recording "
+                         f"(it is built in memory)")
     cfg = config_from_args(args)
     with Outputs() as out:
         out.file(args.output, "output")
@@ -82,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
         try:
             rec = simulate(cfg)
         except ValueError as exc:
-            raise UsageError(str(exc)) from None
+            raise UsageError(_option_names(str(exc))) from None
         with bar(len(rec), f"writing {args.output}", args.quiet, unit="row") as pb:
             # the temporary name keeps the extension, which selects the format
             write_recording(out.temp(args.output), rec, progress=pb.update)

@@ -12,6 +12,7 @@ import os
 import pytest
 
 import hilutil
+import prereq
 
 def pytest_terminal_summary(terminalreporter):
     """The measured loss and latency lines (hilutil.report) at the end of the run."""
@@ -21,19 +22,14 @@ def pytest_terminal_summary(terminalreporter):
             terminalreporter.write_line(line)
 
 
-def _unavailable(reason: str):
-    if hilutil.under_ci():
-        pytest.fail(f"HIL cannot run on this CI machine: {reason}", pytrace=False)
-    pytest.skip(f"HIL not run: {reason}")
-
-
 @pytest.fixture(scope="session")
 def vcan():
     """The vcan_run module, checked to have at least one usable backend."""
     mod = hilutil.vcan_run_module()
     status = mod.backend_status()
     if all(why for why, _expected in status.values()):
-        _unavailable("; ".join(f"{b}: {why}" for b, (why, _e) in status.items()))
+        prereq.unavailable("HIL not run: no vcan backend works here: "
+                           + "; ".join(f"{b}: {why}" for b, (why, _e) in status.items()))
     return mod
 
 

@@ -20,10 +20,6 @@ REPORT: List[str] = []   # lines for the terminal summary (measured loss, latenc
 FULL_SUITE_BACKEND: List[str] = []   # the backend the full HIL suite ran on in this session
 
 
-def under_ci() -> bool:
-    return os.environ.get("CI", "").lower() in ("1", "true", "yes")
-
-
 def report(line: str) -> None:
     REPORT.append(line)
 

@@ -24,6 +24,7 @@ import sys
 import pytest
 
 import hilutil
+import prereq
 
 PY_ID = 0x7AB
 PY_DATA = b"pycan"
@@ -80,7 +81,7 @@ def test_round_trip(backend, vcan, node, tmp_path):
         pytest.skip(f"{backend} ran the full HIL suite in this session")
     why, expected = vcan.backend_status()[backend]
     if why:
-        if expected and hilutil.under_ci():
+        if expected and prereq.in_ci():
             pytest.fail(f"{backend} should work on this machine but cannot be used: {why}", pytrace=False)
         pytest.skip(f"{backend} not usable here: {why}")
     rec = simulate(SimConfig(duration_s=1.0, rate_hz=200.0, seed=21, initial_rest_s=0.5))
