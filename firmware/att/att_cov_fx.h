@@ -46,8 +46,24 @@ ATT_FX_INLINE int32_t att_fx_to_c(int64_t v, int sh)
         if (r <= INT32_MAX && r >= -INT32_MAX) {
             return (int32_t)r;
         }
+    } else if (sh <= 0 && sh > -31) {
+        /* an exact left shift of a value that stays within the word (a word brought into a
+         * smaller scale, the common case of the kernels' rescaling) */
+        const int64_t lim = (int64_t)(INT32_MAX >> -sh);
+        if (v <= lim && v >= -lim) {
+            return (int32_t)((uint32_t)(int32_t)v << -sh);
+        }
     }
     return att_fx_to_c_any(v, sh);
+}
+/* att_fx_to_c of a word: a right shift in 32-bit operations (round half up as
+ * floor(v 2^-sh) plus the last bit shifted out, which cannot overflow). */
+ATT_FX_INLINE int32_t att_fx_w(int32_t v, int sh)
+{
+    if (sh > 0 && sh < 32) {
+        return (v >> sh) + ((v >> (sh - 1)) & 1);
+    }
+    return att_fx_to_c(v, sh);
 }
 /* round(v 2^-sh) as a Q29.34 value (saturated: counted, infinite). */
 ekf_scalar_t att_fx_to_q(int64_t v, int sh);

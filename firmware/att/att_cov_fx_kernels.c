@@ -107,9 +107,12 @@ static void propagate_factor(att_cov_t *c, const ekf_nz_t *pat, int nnz, const e
         return;
     }
     scaled_rows(c, pat, nnz, d, base, f, ph);
-    for (j = 0; j < ATT_N; ++j) {
-        for (k = 0; k < ATT_N; ++k) {
-            cf[j][k] = c->c[att_fx_ix[j][k]];
+    {
+        const int32_t *p = c->c; /* the packed rows (i, j >= i) in order */
+        for (j = 0; j < ATT_N; ++j) {
+            for (k = j; k < ATT_N; ++k) {
+                cf[j][k] = cf[k][j] = *p++;
+            }
         }
     }
     /* rows of A = F~ c, each to words with its own scale: A_rk = a[r][k] 2^al[r] */
@@ -138,7 +141,7 @@ static void propagate_factor(att_cov_t *c, const ekf_nz_t *pat, int nnz, const e
         const int i = base + r, di = c->e[i] - en[r];
         for (l = 0; l < ATT_N; ++l) { /* the rows F leaves: c'_il = A_il */
             if (l < base || l >= base + NR) {
-                c->c[att_fx_ix[i][l]] = att_fx_to_c(a[r][l], -(al[r] + ATT_FX_CF + di));
+                c->c[att_fx_ix[i][l]] = att_fx_w(a[r][l], -(al[r] + ATT_FX_CF + di));
             }
         }
         for (l = r + 1; l < NR; ++l) {
@@ -399,13 +402,17 @@ static ekf_status_t update(att_cov_t *c, ekf_scalar_t x[ATT_N], const int32_t v[
      * word of the Q4.59 product, rounded to nearest: two bits coarser than C's last one (2^-27
      * of the scale per update, unbiased; a rounding toward -inf would add a positive rank-one
      * bias that correlates every pair of states, an unobserved heading with the tilt too) */
-    for (i = 0; i < ATT_N; ++i) {
-        int32_t *row = &c->c[att_fx_ix[i][i]];
-        const int32_t ti = T[i];
-        x[i] = xn[i];
-        row[0] = dg[i];
-        for (j = i + 1; j < ATT_N; ++j) {
-            row[j - i] = (int32_t)((uint32_t)row[j - i] - ((uint32_t)(((int64_t)ti * v[j] + HALF32) >> 32) << 2));
+    {
+        int32_t *p = c->c; /* the packed rows (i, j >= i) in order */
+        for (i = 0; i < ATT_N; ++i) {
+            const int32_t ti = T[i];
+            const int32_t *vj = &v[i + 1];
+            x[i] = xn[i];
+            *p++ = dg[i];
+            for (j = i + 1; j < ATT_N; ++j) {
+                *p = (int32_t)((uint32_t)*p - ((uint32_t)(((int64_t)ti * *vj++ + HALF32) >> 32) << 2));
+                ++p;
+            }
         }
     }
     if (k >= 0) {
