@@ -89,8 +89,8 @@ void att_fx_set_exp(att_cov_t *c, int i, int en)
     for (j = 0; j < ATT_N; ++j) {
         int32_t *p = &c->c[att_fx_ix[i][j]];
         const int kk = (j == i) ? 2 * k : k;
-        if (kk > 0 && kk < 32) { /* a larger scale: rounded right shift */
-            *p = (int32_t)(((int64_t)*p + ((int64_t)1 << (kk - 1))) >> kk);
+        if (kk > 0 && kk < 32) { /* a larger scale: rounded right shift (att_fx_w) */
+            *p = (*p >> kk) + ((*p >> (kk - 1)) & 1);
         } else if (kk < 0 && kk > -31 && ((*p ^ (*p >> 31)) >> (31 + kk)) == 0) { /* exact left shift */
             *p = (int32_t)((uint32_t)*p << -kk);
         } else {

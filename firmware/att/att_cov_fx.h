@@ -41,10 +41,20 @@ ATT_FX_INLINE int att_fx_abslen(int64_t v) { return ekf_fx_bitlen64((v < 0) ? (u
 int32_t att_fx_to_c_any(int64_t v, int sh);
 ATT_FX_INLINE int32_t att_fx_to_c(int64_t v, int sh)
 {
-    if (sh > 0 && sh < 63) {
-        const int64_t r = (v + ((int64_t)1 << (sh - 1))) >> sh;
-        if (r <= INT32_MAX && r >= -INT32_MAX) {
-            return (int32_t)r;
+    /* in 32-bit operations on v's two words: round half up as floor(v 2^-sh) plus the last
+     * bit shifted out; a result at a word's edge (or beyond) takes the general path */
+    const int32_t hi = (int32_t)(v >> 32);
+    const uint32_t lo = (uint32_t)v;
+    if (sh >= 32 && sh < 63) {
+        const int k = sh - 32;
+        const int32_t q = hi >> k;
+        if (q > INT32_MIN && q < INT32_MAX) {
+            return q + (int32_t)((k > 0) ? ((uint32_t)hi >> (k - 1)) & 1u : lo >> 31);
+        }
+    } else if (sh > 0 && sh < 32) {
+        const int32_t q = (int32_t)((lo >> sh) | ((uint32_t)hi << (32 - sh)));
+        if ((hi >> sh) == (q >> 31) && q > INT32_MIN && q < INT32_MAX) {
+            return q + (int32_t)((lo >> (sh - 1)) & 1u);
         }
     } else if (sh <= 0 && sh > -31) {
         /* an exact left shift of a value that stays within the word (a word brought into a

@@ -186,9 +186,10 @@ static void att_cov_increment_var(const att_cov_t *c, const ekf_scalar_t d[ATT_G
             fm[a] = att_fx_to_c(d[fm[a]], top - 28 - c->e[col[a]]);
         }
         for (a = 0; a < n; ++a) {
+            const uint8_t *ia = att_fx_ix[col[a]];
             int64_t wa = 0;
             for (b = 0; b < n; ++b) {
-                wa += (int64_t)fm[b] * c->c[att_fx_ix[col[a]][col[b]]];
+                wa += (int64_t)fm[b] * c->c[ia[col[b]]];
             }
             s += (int64_t)fm[a] * att_fx_to_c(wa, 31);
         }
@@ -478,8 +479,15 @@ ekf_status_t att_cov_update_unit(att_cov_t *c, ekf_scalar_t x[ATT_N], int idx, e
         if (ckk > 0 && ckk < ATT_FX_C_ONE) {
             m = c->e[idx] - att_fx_norm_exp((uint64_t)ckk, 2 * c->e[idx] - ATT_FX_CF);
         }
-        for (i = 0; i < ATT_N; ++i) {
-            v[i] = att_fx_to_c(c->c[att_fx_ix[i][idx]], (i == idx) ? -2 * m : -m);
+        const uint8_t *col = att_fx_ix[idx];
+        if (m == 0) {
+            for (i = 0; i < ATT_N; ++i) {
+                v[i] = c->c[col[i]];
+            }
+        } else {
+            for (i = 0; i < ATT_N; ++i) {
+                v[i] = att_fx_to_c(c->c[col[i]], (i == idx) ? -2 * m : -m);
+            }
         }
         return update(c, x, v, v[idx], c->e[idx] - m, idx, nu, r_var, gate, var_floor, info);
     }
