@@ -23,7 +23,7 @@
 #define HALF32 ((int64_t)1 << 31)
 
 /* Dot product of two 9-vectors of words, exact (nine multiply-accumulates). */
-static int64_t dot9(const int32_t *a, const int32_t *b)
+ATT_FX_INLINE int64_t dot9(const int32_t *a, const int32_t *b)
 {
     return (int64_t)a[0] * b[0] + (int64_t)a[1] * b[1] + (int64_t)a[2] * b[2] + (int64_t)a[3] * b[3] +
            (int64_t)a[4] * b[4] + (int64_t)a[5] * b[5] + (int64_t)a[6] * b[6] + (int64_t)a[7] * b[7] +
