@@ -444,6 +444,16 @@ int instr_cov_ensure_pd(att_cov_t *c, ekf_scalar_t rel_margin, ekf_scalar_t var_
     return r;
 }
 
+/* The guard at the end of every public call: the covariance the filter keeps. */
+int instr_cov_guard(att_cov_t *c, ekf_scalar_t rel_margin, ekf_scalar_t var_floor)
+{
+    const int r = att_cov_guard(c, rel_margin, var_floor);
+    if (r >= 0) {
+        analyse(c);
+    }
+    return r;
+}
+
 /* ---- the public step ---- */
 
 const att_ekf_t *g_last_filter;

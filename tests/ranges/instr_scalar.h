@@ -57,6 +57,7 @@ double instr_atan2(double y, double x);
 #define att_cov_update_unit instr_cov_update_unit
 #define att_cov_update_tilt instr_cov_update_tilt
 #define att_cov_ensure_pd instr_cov_ensure_pd
+#define att_cov_guard instr_cov_guard
 #endif
 
 #endif /* INSTR_SCALAR_H */
