@@ -66,6 +66,19 @@ ATT_FX_INLINE int32_t att_fx_to_c(int64_t v, int sh)
     }
     return att_fx_to_c_any(v, sh);
 }
+/* round(v 2^-sh) for 0 < sh < 63 and |v| < 2^62, as (v + 2^(sh-1)) >> sh, in 32-bit
+ * operations on v's two words (floor plus the last bit shifted out). */
+ATT_FX_INLINE int64_t att_fx_shr(int64_t v, int sh)
+{
+    const int32_t hi = (int32_t)(v >> 32);
+    const uint32_t lo = (uint32_t)v;
+    if (sh >= 32) {
+        const int k = sh - 32;
+        return (int64_t)(hi >> k) + (int64_t)((k > 0) ? ((uint32_t)hi >> (k - 1)) & 1u : lo >> 31);
+    }
+    return (int64_t)(((uint64_t)(uint32_t)(hi >> sh) << 32) | ((lo >> sh) | ((uint32_t)hi << (32 - sh)))) +
+           (int64_t)((lo >> (sh - 1)) & 1u);
+}
 /* att_fx_to_c of a word: a right shift in 32-bit operations (round half up as
  * floor(v 2^-sh) plus the last bit shifted out, which cannot overflow). */
 ATT_FX_INLINE int32_t att_fx_w(int32_t v, int sh)

@@ -391,7 +391,7 @@ static ekf_status_t update(att_cov_t *c, ekf_scalar_t x[ATT_N], const int32_t v[
         for (i = 0; i < ATT_N; ++i) {
             const int sh = -(base + ((i == k) ? eta : c->e[i]));
             const int64_t p = (int64_t)v[i] * wv;
-            const ekf_scalar_t dx = (sh > 0 && sh < 63) ? (p + ((int64_t)1 << (sh - 1))) >> sh : att_fx_to_q(p, sh);
+            const ekf_scalar_t dx = (sh > 0 && sh < 63) ? att_fx_shr(p, sh) : att_fx_to_q(p, sh);
             xn[i] = ekf_fx_add(x[i], dx);
             bad = ekf_finite_acc(bad, xn[i]);
         }
