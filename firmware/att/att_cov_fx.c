@@ -89,8 +89,8 @@ void att_fx_set_exp(att_cov_t *c, int i, int en)
     for (j = 0; j < ATT_N; ++j) {
         int32_t *p = &c->c[att_fx_ix[i][j]];
         const int kk = (j == i) ? 2 * k : k;
-        if (kk > 0 && kk < 32) { /* a larger scale: rounded right shift */
-            *p = (int32_t)(((int64_t)*p + ((int64_t)1 << (kk - 1))) >> kk);
+        if (kk > 0 && kk < 32) { /* a larger scale: rounded right shift (att_fx_w) */
+            *p = (*p >> kk) + ((*p >> (kk - 1)) & 1);
         } else if (kk < 0 && kk > -31 && ((*p ^ (*p >> 31)) >> (31 + kk)) == 0) { /* exact left shift */
             *p = (int32_t)((uint32_t)*p << -kk);
         } else {
@@ -389,33 +389,32 @@ static int64_t mul_hi(int64_t a, uint32_t b)
  * root. 1 if every pivot p_j >= rel_margin C_jj and > 0, else 0. */
 static int chol_pd(const att_cov_t *c, ekf_scalar_t rel_margin)
 {
-    int32_t G[ATT_FX_NP]; /* lower triangle, indexed as C */
-    uint32_t rs[ATT_N];    /* 1 / sqrt(p_k) = rs_k 2^(-18 - t_k / 2), p_k = acc_k 2^-58 */
-    int sh[ATT_N];         /* 15 + t_k / 2: G_jk = (acc rs_k / 2^32) >> sh_k */
+    int32_t G[ATT_N][ATT_N]; /* G_jk (k < j) at G[j][k] */
+    uint32_t rs[ATT_N];       /* 1 / sqrt(p_k) = rs_k 2^(-18 - t_k / 2), p_k = acc_k 2^-58 */
+    int sh[ATT_N];            /* 15 + t_k / 2: G_jk = (acc rs_k / 2^32) >> sh_k */
     /* rel_margin in Q0.32 (< 1 by the callers) */
     const uint32_t rel = (rel_margin >= EKF_C(1)) ? 0xFFFFFFFFu : (uint32_t)(rel_margin >> (EKF_FX_FRAC - 32));
     int j, k, m;
     for (j = 0; j < ATT_N; ++j) {
-        int32_t gj[ATT_N];
-        int64_t acc;
+        int32_t *gj = G[j];
+        int64_t acc, sum;
         int t;
         for (k = 0; k < j; ++k) {
-            acc = (int64_t)c->c[att_fx_ix[j][k]] << ATT_FX_CF; /* Q4.58 */
-            for (m = 0; m < k; ++m) {
-                acc -= (int64_t)gj[m] * G[att_fx_ix[k][m]];
+            const int32_t *gk = G[k];
+            /* the products summed first (one multiply-accumulate each), subtracted once */
+            for (m = 0, sum = 0; m < k; ++m) {
+                sum += (int64_t)gj[m] * gk[m];
             }
+            acc = ((int64_t)c->c[att_fx_ix[j][k]] << ATT_FX_CF) - sum; /* Q4.58 */
             gj[k] = att_fx_to_c(mul_hi(acc, rs[k]), sh[k]);
         }
-        acc = ((int64_t)c->c[att_fx_ix[j][j]] - att_fx_floor_c(c, j, ATT_COV_FX_TAU)) << ATT_FX_CF;
-        for (m = 0; m < j; ++m) {
-            acc -= (int64_t)gj[m] * gj[m];
+        for (m = 0, sum = 0; m < j; ++m) {
+            sum += (int64_t)gj[m] * gj[m];
         }
+        acc = (((int64_t)c->c[att_fx_ix[j][j]] - att_fx_floor_c(c, j, ATT_COV_FX_TAU)) << ATT_FX_CF) - sum;
         /* p_j 2^26 against rel C_jj 2^26 (the product Q0.32 x Q2.29 >> 35) */
         if (acc <= 0 || (acc >> 32) < (int64_t)(((uint64_t)rel * (uint32_t)c->c[att_fx_ix[j][j]]) >> 35)) {
             return 0;
-        }
-        for (m = 0; m < j; ++m) {
-            G[att_fx_ix[j][m]] = gj[m];
         }
         /* acc = d 2^t, d in [2^30, 2^32), t even: 1/sqrt(p) = rsqrt(d) 2^-47 2^(29 - t/2) */
         t = att_fx_bitlen64((uint64_t)acc) - 32;

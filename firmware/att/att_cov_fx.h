@@ -41,13 +41,52 @@ ATT_FX_INLINE int att_fx_abslen(int64_t v) { return ekf_fx_bitlen64((v < 0) ? (u
 int32_t att_fx_to_c_any(int64_t v, int sh);
 ATT_FX_INLINE int32_t att_fx_to_c(int64_t v, int sh)
 {
-    if (sh > 0 && sh < 63) {
-        const int64_t r = (v + ((int64_t)1 << (sh - 1))) >> sh;
-        if (r <= INT32_MAX && r >= -INT32_MAX) {
-            return (int32_t)r;
+    /* in 32-bit operations on v's two words: round half up as floor(v 2^-sh) plus the last
+     * bit shifted out; a result at a word's edge (or beyond) takes the general path */
+    const int32_t hi = (int32_t)(v >> 32);
+    const uint32_t lo = (uint32_t)v;
+    if (sh >= 32 && sh < 63) {
+        const int k = sh - 32;
+        const int32_t q = hi >> k;
+        if (q > INT32_MIN && q < INT32_MAX) {
+            return q + (int32_t)((k > 0) ? ((uint32_t)hi >> (k - 1)) & 1u : lo >> 31);
+        }
+    } else if (sh > 0 && sh < 32) {
+        const int32_t q = (int32_t)((lo >> sh) | ((uint32_t)hi << (32 - sh)));
+        if ((hi >> sh) == (q >> 31) && q > INT32_MIN && q < INT32_MAX) {
+            return q + (int32_t)((lo >> (sh - 1)) & 1u);
+        }
+    } else if (sh <= 0 && sh > -31) {
+        /* an exact left shift of a value that stays within the word (a word brought into a
+         * smaller scale, the common case of the kernels' rescaling) */
+        const int64_t lim = (int64_t)(INT32_MAX >> -sh);
+        if (v <= lim && v >= -lim) {
+            return (int32_t)((uint32_t)(int32_t)v << -sh);
         }
     }
     return att_fx_to_c_any(v, sh);
+}
+/* round(v 2^-sh) for 0 < sh < 63 and |v| < 2^62, as (v + 2^(sh-1)) >> sh, in 32-bit
+ * operations on v's two words (floor plus the last bit shifted out). */
+ATT_FX_INLINE int64_t att_fx_shr(int64_t v, int sh)
+{
+    const int32_t hi = (int32_t)(v >> 32);
+    const uint32_t lo = (uint32_t)v;
+    if (sh >= 32) {
+        const int k = sh - 32;
+        return (int64_t)(hi >> k) + (int64_t)((k > 0) ? ((uint32_t)hi >> (k - 1)) & 1u : lo >> 31);
+    }
+    return (int64_t)(((uint64_t)(uint32_t)(hi >> sh) << 32) | ((lo >> sh) | ((uint32_t)hi << (32 - sh)))) +
+           (int64_t)((lo >> (sh - 1)) & 1u);
+}
+/* att_fx_to_c of a word: a right shift in 32-bit operations (round half up as
+ * floor(v 2^-sh) plus the last bit shifted out, which cannot overflow). */
+ATT_FX_INLINE int32_t att_fx_w(int32_t v, int sh)
+{
+    if (sh > 0 && sh < 32) {
+        return (v >> sh) + ((v >> (sh - 1)) & 1);
+    }
+    return att_fx_to_c(v, sh);
 }
 /* round(v 2^-sh) as a Q29.34 value (saturated: counted, infinite). */
 ekf_scalar_t att_fx_to_q(int64_t v, int sh);

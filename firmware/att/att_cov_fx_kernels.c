@@ -1,6 +1,7 @@
 /*
  * att_cov_fx_kernels.c - the fixed-point covariance's heavy operations (att_cov.h,
- * ATT_COV_FX): the propagation F P F^T and the angle increments' variance, the rate noise,
+ * ATT_COV_FX): the propagation F P F^T (one transition factor at a time) and the angle
+ * increments' variance, the rate noise,
  * the scalar measurement updates (docs/fixed_point.md, "Covariance").
  *
  * With P = S c S (S = diag(2^e_i), c = C 2^-29):
@@ -19,11 +20,10 @@
 
 #include "ekf_util.h"
 
-#define NR 6 /* rows of D: ATT_PHI .. ATT_PSID */
 #define HALF32 ((int64_t)1 << 31)
 
 /* Dot product of two 9-vectors of words, exact (nine multiply-accumulates). */
-static int64_t dot9(const int32_t *a, const int32_t *b)
+ATT_FX_INLINE int64_t dot9(const int32_t *a, const int32_t *b)
 {
     return (int64_t)a[0] * b[0] + (int64_t)a[1] * b[1] + (int64_t)a[2] * b[2] + (int64_t)a[3] * b[3] +
            (int64_t)a[4] * b[4] + (int64_t)a[5] * b[5] + (int64_t)a[6] * b[6] + (int64_t)a[7] * b[7] +
@@ -49,20 +49,26 @@ static int block_row(const int64_t *v, int32_t *w, int bits)
 
 /* ---- propagation ---- */
 
-/* The rows of F~ = S^-1 F S (F = I + D) as words f[r][j] 2^ph[r] (|f| < 2^28). The pattern
- * is sorted by row and has the rows ATT_PHI .. ATT_PSID (att_gen.h). */
-static void scaled_rows(const att_cov_t *c, const ekf_scalar_t d[ATT_GEN_F_NNZ], int32_t f[NR][ATT_N], int ph[NR])
+/* The prediction applies the transition's two factors in turn, F P F^T = F2 (F1 P F1^T) F2^T:
+ * each factor I + D_k changes three rows (D1 the angle rows ATT_PHI .., D2 the Euler-rate rows
+ * ATT_PHID ..), so each congruence is a 3-row update of C, rounded once per stored word. */
+#define NR 3
+
+/* The rows base .. base+2 of F~ = S^-1 F S (F = I + D, D's values d on the pattern pat, sorted
+ * by row, every entry in those rows) as words f[r][j] 2^ph[r] (|f| < 2^28). */
+static void scaled_rows(const att_cov_t *c, const ekf_nz_t *pat, int nnz, const ekf_scalar_t *d, int base,
+                        int32_t f[NR][ATT_N], int ph[NR])
 {
     int k = 0, r;
     for (r = 0; r < NR; ++r) {
-        const int row = ATT_PHI + r, k0 = k;
+        const int row = base + r, k0 = k;
         ekf_scalar_t diag = EKF_FX_ONE;
         int top, j, kend;
         for (j = 0; j < ATT_N; ++j) {
             f[r][j] = 0;
         }
-        for (; k < ATT_GEN_F_NNZ && att_gen_f_pattern[k].row == row; ++k) {
-            if (att_gen_f_pattern[k].col == row) {
+        for (; k < nnz && pat[k].row == row; ++k) {
+            if (pat[k].col == row) {
                 diag += d[k];
             }
         }
@@ -70,14 +76,14 @@ static void scaled_rows(const att_cov_t *c, const ekf_scalar_t d[ATT_GEN_F_NNZ],
         /* F~_rj = F_rj 2^(e_j - e_r) 2^-34: the row's largest bit length with the exponents */
         top = att_fx_abslen(diag) + c->e[row];
         for (k = k0; k < kend; ++k) {
-            const int col = att_gen_f_pattern[k].col;
+            const int col = pat[k].col;
             if (col != row && d[k] != 0) {
                 const int b = att_fx_abslen(d[k]) + c->e[col];
                 top = (b > top) ? b : top;
             }
         }
         for (k = k0; k < kend; ++k) {
-            const int col = att_gen_f_pattern[k].col;
+            const int col = pat[k].col;
             if (col != row) {
                 f[r][col] = att_fx_to_c(d[k], top - 28 - c->e[col]);
             }
@@ -87,7 +93,8 @@ static void scaled_rows(const att_cov_t *c, const ekf_scalar_t d[ATT_GEN_F_NNZ],
     }
 }
 
-static void att_cov_propagate(att_cov_t *c, const ekf_scalar_t d[ATT_GEN_F_NNZ])
+/* C <- F~ C F~^T for the factor F = I + D whose rows base .. base+2 differ from I. */
+static void propagate_factor(att_cov_t *c, const ekf_nz_t *pat, int nnz, const ekf_scalar_t *d, int base)
 {
     int32_t cf[ATT_N][ATT_N]; /* C unpacked */
     int32_t f[NR][ATT_N], a[NR][ATT_N];
@@ -96,13 +103,16 @@ static void att_cov_propagate(att_cov_t *c, const ekf_scalar_t d[ATT_GEN_F_NNZ])
     int r, l, j, k;
 
     if (c->inf != 0u) {
-        c->inf = (uint16_t)(c->inf | 0x1F8u); /* every row of D: not finite either */
+        c->inf = (uint16_t)(c->inf | (7u << base)); /* the changed rows: not finite either */
         return;
     }
-    scaled_rows(c, d, f, ph);
-    for (j = 0; j < ATT_N; ++j) {
-        for (k = 0; k < ATT_N; ++k) {
-            cf[j][k] = c->c[att_fx_ix[j][k]];
+    scaled_rows(c, pat, nnz, d, base, f, ph);
+    {
+        const int32_t *p = c->c; /* the packed rows (i, j >= i) in order */
+        for (j = 0; j < ATT_N; ++j) {
+            for (k = j; k < ATT_N; ++k) {
+                cf[j][k] = cf[k][j] = *p++;
+            }
         }
     }
     /* rows of A = F~ c, each to words with its own scale: A_rk = a[r][k] 2^al[r] */
@@ -114,7 +124,7 @@ static void att_cov_propagate(att_cov_t *c, const ekf_scalar_t d[ATT_GEN_F_NNZ])
     }
     /* the new variances c'_rr = sum_m F~_rm A_rm and their exponents */
     for (r = 0; r < NR; ++r) {
-        const int i = ATT_PHI + r;
+        const int i = base + r;
         const int64_t v = dot9(f[r], a[r]);
         const int x = ph[r] + al[r];
         en[r] = (v == 0) ? ATT_FX_E_MIN : att_fx_norm_exp((uint64_t)(v < 0 ? -v : v), x + 2 * c->e[i]);
@@ -126,23 +136,26 @@ static void att_cov_propagate(att_cov_t *c, const ekf_scalar_t d[ATT_GEN_F_NNZ])
         }
         c->c[att_fx_ix[i][i]] = att_fx_to_c(v, -(x + ATT_FX_CF + 2 * (c->e[i] - en[r])));
     }
-    /* the rest of the new rows, in the new scales: C'_il = c'_il 2^(29 + e_i + e_l - e'_i - e'_l) */
+    /* the rest of the changed rows, in the new scales: C'_il = c'_il 2^(29 + e_i + e_l - e'_i - e'_l) */
     for (r = 0; r < NR; ++r) {
-        const int i = ATT_PHI + r, di = c->e[i] - en[r];
-        for (l = 0; l < ATT_PHI; ++l) { /* the rates: c'_il = A_il */
-            c->c[att_fx_ix[i][l]] = att_fx_to_c(a[r][l], -(al[r] + ATT_FX_CF + di));
+        const int i = base + r, di = c->e[i] - en[r];
+        for (l = 0; l < ATT_N; ++l) { /* the rows F leaves: c'_il = A_il */
+            if (l < base || l >= base + NR) {
+                c->c[att_fx_ix[i][l]] = att_fx_w(a[r][l], -(al[r] + ATT_FX_CF + di));
+            }
         }
         for (l = r + 1; l < NR; ++l) {
-            const int jl = ATT_PHI + l;
+            const int jl = base + l;
             c->c[att_fx_ix[i][jl]] = att_fx_to_c(dot9(f[l], a[r]), -(ph[l] + al[r] + ATT_FX_CF + di + c->e[jl] - en[l]));
         }
     }
     for (r = 0; r < NR; ++r) {
-        c->e[ATT_PHI + r] = (int8_t)en[r];
+        c->e[base + r] = (int8_t)en[r];
     }
 }
 
-static void att_cov_increment_var(const att_cov_t *c, const ekf_scalar_t d[ATT_GEN_F_NNZ], ekf_scalar_t var[3])
+/* (D1 P D1^T)_ii of the angle rows of D1 (pattern att_gen_f1_pattern, sorted by row). */
+static void att_cov_increment_var(const att_cov_t *c, const ekf_scalar_t d[ATT_GEN_F1_NNZ], ekf_scalar_t var[3])
 {
     int k = 0, i;
     for (i = 0; i < 3; ++i) {
@@ -151,32 +164,32 @@ static void att_cov_increment_var(const att_cov_t *c, const ekf_scalar_t d[ATT_G
     if (c->inf != 0u) {
         return;
     }
-    /* the pattern is sorted by row: the quadratic form u^T c u of each angle row of D,
-     * u_a = d_a 2^(e_col) = fm_a 2^(top - 62) */
-    while (k < ATT_GEN_F_NNZ && att_gen_f_pattern[k].row <= ATT_PSI) {
-        const int row = att_gen_f_pattern[k].row;
+    /* the quadratic form u^T c u of each angle row of D, u_a = d_a 2^(e_col) = fm_a 2^(top - 62) */
+    while (k < ATT_GEN_F1_NNZ) {
+        const int row = att_gen_f1_pattern[k].row;
         int32_t fm[ATT_N];
         uint8_t col[ATT_N];
         int n = 0, top = INT32_MIN, a, b;
         int64_t s = 0;
-        for (; k < ATT_GEN_F_NNZ && att_gen_f_pattern[k].row == row; ++k) {
+        for (; k < ATT_GEN_F1_NNZ && att_gen_f1_pattern[k].row == row; ++k) {
             if (d[k] != 0) {
-                const int bl = att_fx_abslen(d[k]) + c->e[att_gen_f_pattern[k].col];
+                const int bl = att_fx_abslen(d[k]) + c->e[att_gen_f1_pattern[k].col];
                 top = (bl > top) ? bl : top;
-                col[n] = att_gen_f_pattern[k].col;
+                col[n] = att_gen_f1_pattern[k].col;
                 fm[n++] = (int32_t)k; /* the entry, converted below */
             }
         }
-        if (n == 0 || row < ATT_PHI) {
+        if (n == 0) {
             continue;
         }
         for (a = 0; a < n; ++a) {
             fm[a] = att_fx_to_c(d[fm[a]], top - 28 - c->e[col[a]]);
         }
         for (a = 0; a < n; ++a) {
+            const uint8_t *ia = att_fx_ix[col[a]];
             int64_t wa = 0;
             for (b = 0; b < n; ++b) {
-                wa += (int64_t)fm[b] * c->c[att_fx_ix[col[a]][col[b]]];
+                wa += (int64_t)fm[b] * c->c[ia[col[b]]];
             }
             s += (int64_t)fm[a] * att_fx_to_c(wa, 31);
         }
@@ -257,50 +270,18 @@ void att_cov_add_rate_noise(att_cov_t *c, const ekf_scalar_t g[9], const ekf_sca
 ekf_status_t att_cov_predict(att_cov_t *c, const ekf_scalar_t d1[ATT_GEN_F1_NNZ], const ekf_scalar_t d2[ATT_GEN_F2_NNZ],
                              const ekf_scalar_t var[3], ekf_scalar_t inc_var[3])
 {
-    /* The kernels above work on the whole transition F = F2 F1 (one rounding per stored
-     * word for the whole congruence, which the 32-bit words need), so the factors are
-     * multiplied back: D = F - I = D1 + D2 + D2 D1 on att_gen_f_pattern (D1 has the angle
-     * rows, D2 the Euler-rate rows; the generator checks F2 F1 = F). The rate noise then
-     * enters with G = F2 [I; 0; 0] = [I; 0; W+], whose Euler block is D2's rate columns:
-     * F2 (F1 P F1^T + diag(var, 0)) F2^T = F P F^T + G diag(var) G^T. */
-    ekf_scalar_t m1[3][ATT_N], m2[3][ATT_N]; /* D1's angle rows, D2's Euler-rate rows */
-    ekf_scalar_t d[ATT_GEN_F_NNZ], g[9];
-    int k, r, col, m;
+    /* F P F^T + G diag(var) G^T = F2 (F1 P F1^T + diag(var, 0)) F2^T with G = F2 [I; 0; 0]:
+     * the rate noise enters between the factors, on the rates' diagonal */
+    int j;
     if (!ekf_all_finite(d1, ATT_GEN_F1_NNZ) || !ekf_all_finite(d2, ATT_GEN_F2_NNZ)) {
         return EKF_ERR_NUMERIC;
     }
-    for (r = 0; r < 3; ++r) {
-        for (col = 0; col < ATT_N; ++col) {
-            m1[r][col] = m2[r][col] = EKF_C(0);
-        }
+    att_cov_increment_var(c, d1, inc_var);
+    propagate_factor(c, att_gen_f1_pattern, ATT_GEN_F1_NNZ, d1, ATT_PHI);
+    for (j = 0; j < 3; ++j) {
+        att_cov_add_var(c, ATT_P + j, var[j]);
     }
-    for (k = 0; k < ATT_GEN_F1_NNZ; ++k) {
-        m1[att_gen_f1_pattern[k].row - ATT_PHI][att_gen_f1_pattern[k].col] = d1[k];
-    }
-    for (k = 0; k < ATT_GEN_F2_NNZ; ++k) {
-        m2[att_gen_f2_pattern[k].row - ATT_PHID][att_gen_f2_pattern[k].col] = d2[k];
-    }
-    for (k = 0; k < ATT_GEN_F_NNZ; ++k) {
-        const int row = att_gen_f_pattern[k].row;
-        col = att_gen_f_pattern[k].col;
-        if (row <= ATT_PSI) {
-            d[k] = m1[row - ATT_PHI][col];
-        } else {
-            ekf_scalar_t v = m2[row - ATT_PHID][col];
-            for (m = 0; m < 3; ++m) {
-                v = ekf_mac(v, m2[row - ATT_PHID][ATT_PHI + m], m1[m][col]);
-            }
-            d[k] = v;
-        }
-    }
-    for (r = 0; r < 3; ++r) {
-        for (m = 0; m < 3; ++m) {
-            g[r * 3 + m] = m2[r][ATT_P + m];
-        }
-    }
-    att_cov_increment_var(c, d, inc_var);
-    att_cov_propagate(c, d);
-    att_cov_add_rate_noise(c, g, var);
+    propagate_factor(c, att_gen_f2_pattern, ATT_GEN_F2_NNZ, d2, ATT_PHID);
     return EKF_OK;
 }
 
@@ -410,7 +391,7 @@ static ekf_status_t update(att_cov_t *c, ekf_scalar_t x[ATT_N], const int32_t v[
         for (i = 0; i < ATT_N; ++i) {
             const int sh = -(base + ((i == k) ? eta : c->e[i]));
             const int64_t p = (int64_t)v[i] * wv;
-            const ekf_scalar_t dx = (sh > 0 && sh < 63) ? (p + ((int64_t)1 << (sh - 1))) >> sh : att_fx_to_q(p, sh);
+            const ekf_scalar_t dx = (sh > 0 && sh < 63) ? att_fx_shr(p, sh) : att_fx_to_q(p, sh);
             xn[i] = ekf_fx_add(x[i], dx);
             bad = ekf_finite_acc(bad, xn[i]);
         }
@@ -422,13 +403,17 @@ static ekf_status_t update(att_cov_t *c, ekf_scalar_t x[ATT_N], const int32_t v[
      * word of the Q4.59 product, rounded to nearest: two bits coarser than C's last one (2^-27
      * of the scale per update, unbiased; a rounding toward -inf would add a positive rank-one
      * bias that correlates every pair of states, an unobserved heading with the tilt too) */
-    for (i = 0; i < ATT_N; ++i) {
-        int32_t *row = &c->c[att_fx_ix[i][i]];
-        const int32_t ti = T[i];
-        x[i] = xn[i];
-        row[0] = dg[i];
-        for (j = i + 1; j < ATT_N; ++j) {
-            row[j - i] = (int32_t)((uint32_t)row[j - i] - ((uint32_t)(((int64_t)ti * v[j] + HALF32) >> 32) << 2));
+    {
+        int32_t *p = c->c; /* the packed rows (i, j >= i) in order */
+        for (i = 0; i < ATT_N; ++i) {
+            const int32_t ti = T[i];
+            const int32_t *vj = &v[i + 1];
+            x[i] = xn[i];
+            *p++ = dg[i];
+            for (j = i + 1; j < ATT_N; ++j) {
+                *p = (int32_t)((uint32_t)*p - ((uint32_t)(((int64_t)ti * *vj++ + HALF32) >> 32) << 2));
+                ++p;
+            }
         }
     }
     if (k >= 0) {
@@ -494,8 +479,15 @@ ekf_status_t att_cov_update_unit(att_cov_t *c, ekf_scalar_t x[ATT_N], int idx, e
         if (ckk > 0 && ckk < ATT_FX_C_ONE) {
             m = c->e[idx] - att_fx_norm_exp((uint64_t)ckk, 2 * c->e[idx] - ATT_FX_CF);
         }
-        for (i = 0; i < ATT_N; ++i) {
-            v[i] = att_fx_to_c(c->c[att_fx_ix[i][idx]], (i == idx) ? -2 * m : -m);
+        const uint8_t *col = att_fx_ix[idx];
+        if (m == 0) {
+            for (i = 0; i < ATT_N; ++i) {
+                v[i] = c->c[col[i]];
+            }
+        } else {
+            for (i = 0; i < ATT_N; ++i) {
+                v[i] = att_fx_to_c(c->c[col[i]], (i == idx) ? -2 * m : -m);
+            }
         }
         return update(c, x, v, v[idx], c->e[idx] - m, idx, nu, r_var, gate, var_floor, info);
     }

@@ -98,7 +98,7 @@ static void init(void)
     g_acc[Q_DROP_UNIT].name = "drop_unit_other"; /* unit update, states other than the measured one */
     g_acc[Q_DROP_UNIT_K].name = "drop_unit_measured";
     g_acc[Q_DROP_TILT].name = "drop_tilt";
-    g_acc[Q_KAPPA_PROP].name = "kappa_propagate"; /* max_j |F_rj| s_j / s'_r per transition row */
+    g_acc[Q_KAPPA_PROP].name = "kappa_propagate"; /* max_j |F_rj| s_j / s'_r per row of each transition factor */
     g_acc[Q_D].name = "jacobian_d";
     g_acc[Q_RVAR].name = "update_r_var";
     g_acc[Q_NOISE_VAR].name = "rate_noise_var";
@@ -281,38 +281,90 @@ static void ratio(int q, const double *before, const double *after, int grow, un
 
 void instr_cov_set_diag(att_cov_t *c, const ekf_scalar_t var[ATT_N]) { att_cov_set_diag(c, var); }
 
-void instr_cov_propagate(att_cov_t *c, const ekf_scalar_t d[ATT_GEN_F_NNZ])
+/* Dynamic range of each scaled row of the factor F = I + D (D's values d on pat, its rows
+ * changed; S'^-1 F S, s = sqrt(diag)): the row's largest entry against the row's result
+ * (log2 of it is what a block-scaled row loses), recorded for the changed rows. */
+static void kappa_factor(const ekf_nz_t *pat, int nnz, const ekf_scalar_t *d, const double *b, const double *a,
+                         int first)
 {
-    double b[ATT_N], a[ATT_N], kappa[ATT_N] = {0};
+    double kappa[ATT_N] = {0};
     int k, i;
-    diag_of(c, b);
-    for (k = 0; k < ATT_GEN_F_NNZ; ++k) {
-        rec(Q_D, ekf_to_double(d[k]));
-    }
-    att_cov_propagate(c, d);
-    diag_of(c, a);
-    ratio(Q_GROW_PROP, b, a, 1, 0x1ffu);
-    ratio(Q_DROP_PROP, b, a, 0, 0x1ffu);
-    /* dynamic range of the scaled transition row r (S'^-1 F S, s = sqrt(diag)): its largest
-     * entry against the row's result; log2 of it is what a block-scaled row loses */
-    for (k = 0; k < ATT_GEN_F_NNZ; ++k) {
-        const int r = att_gen_f_pattern[k].row, j = att_gen_f_pattern[k].col;
+    for (k = 0; k < nnz; ++k) {
+        const int r = pat[k].row, j = pat[k].col;
         const double f = ekf_to_double(d[k]) + (r == j ? 1.0 : 0.0);
-        kappa[r] = fmax(kappa[r], fabs(f) * sqrt(b[j]) / sqrt(a[r]));
+        if (a[r] > 0.0) {
+            kappa[r] = fmax(kappa[r], fabs(f) * sqrt(b[j]) / sqrt(a[r]));
+        }
     }
-    for (i = ATT_PHI; i < ATT_N; ++i) {
-        kappa[i] = fmax(kappa[i], sqrt(b[i]) / sqrt(a[i])); /* the identity term */
-        rec(Q_KAPPA_PROP, kappa[i]);
+    for (i = first; i < first + 3; ++i) {
+        if (a[i] > 0.0) {
+            kappa[i] = fmax(kappa[i], sqrt(b[i]) / sqrt(a[i])); /* the identity term */
+            rec(Q_KAPPA_PROP, kappa[i]);
+        }
     }
 }
 
-void instr_cov_increment_var(const att_cov_t *c, const ekf_scalar_t d[ATT_GEN_F_NNZ], ekf_scalar_t var[3])
+/* The diagonal of F P F^T for F = I + D (pattern pat), in double. */
+static void factor_diag(const double *P, const ekf_nz_t *pat, int nnz, const ekf_scalar_t *d, double out[ATT_N])
 {
-    int i;
-    att_cov_increment_var(c, d, var);
-    for (i = 0; i < 3; ++i) {
-        rec(Q_INC_VAR, ekf_to_double(var[i]));
+    double F[ATT_N * ATT_N] = {0};
+    int k, i, j, m;
+    for (i = 0; i < ATT_N; ++i) {
+        F[i * ATT_N + i] = 1.0;
     }
+    for (k = 0; k < nnz; ++k) {
+        F[pat[k].row * ATT_N + pat[k].col] += ekf_to_double(d[k]);
+    }
+    for (i = 0; i < ATT_N; ++i) {
+        double s = 0.0;
+        for (j = 0; j < ATT_N; ++j) {
+            for (m = 0; m < ATT_N; ++m) {
+                s += F[i * ATT_N + j] * P[j * ATT_N + m] * F[i * ATT_N + m];
+            }
+        }
+        out[i] = s;
+    }
+}
+
+ekf_status_t instr_cov_predict(att_cov_t *c, const ekf_scalar_t d1[ATT_GEN_F1_NNZ], const ekf_scalar_t d2[ATT_GEN_F2_NNZ],
+                               const ekf_scalar_t var[3], ekf_scalar_t inc_var[3])
+{
+    ekf_scalar_t Pq[ATT_N * ATT_N];
+    double P[ATT_N * ATT_N], b[ATT_N], m1[ATT_N], a[ATT_N];
+    ekf_status_t st;
+    int k, i;
+    diag_of(c, b);
+    att_cov_to_full(c, Pq);
+    for (i = 0; i < ATT_N * ATT_N; ++i) {
+        P[i] = ekf_to_double(Pq[i]);
+    }
+    for (k = 0; k < ATT_GEN_F1_NNZ; ++k) {
+        rec(Q_D, ekf_to_double(d1[k]));
+    }
+    for (k = 0; k < ATT_GEN_F2_NNZ; ++k) {
+        rec(Q_D, ekf_to_double(d2[k]));
+    }
+    for (i = 0; i < 3; ++i) {
+        rec(Q_NOISE_VAR, ekf_to_double(var[i]));
+    }
+    st = att_cov_predict(c, d1, d2, var, inc_var);
+    if (st != EKF_OK) {
+        return st;
+    }
+    diag_of(c, a);
+    ratio(Q_GROW_PROP, b, a, 1, 0x1ffu);
+    ratio(Q_DROP_PROP, b, a, 0, 0x1ffu);
+    /* the first factor's result (the rate noise on the rates between the factors) */
+    factor_diag(P, att_gen_f1_pattern, ATT_GEN_F1_NNZ, d1, m1);
+    kappa_factor(att_gen_f1_pattern, ATT_GEN_F1_NNZ, d1, b, m1, ATT_PHI);
+    for (i = 0; i < 3; ++i) {
+        m1[ATT_P + i] += ekf_to_double(var[i]);
+    }
+    kappa_factor(att_gen_f2_pattern, ATT_GEN_F2_NNZ, d2, m1, a, ATT_PHID);
+    for (i = 0; i < 3; ++i) {
+        rec(Q_INC_VAR, ekf_to_double(inc_var[i]));
+    }
+    return st;
 }
 
 void instr_cov_add_rate_noise(att_cov_t *c, const ekf_scalar_t g[9], const ekf_scalar_t var[3])
@@ -386,6 +438,16 @@ ekf_status_t instr_cov_update_tilt(att_cov_t *c, ekf_scalar_t x[ATT_N], ekf_scal
 int instr_cov_ensure_pd(att_cov_t *c, ekf_scalar_t rel_margin, ekf_scalar_t var_floor)
 {
     const int r = att_cov_ensure_pd(c, rel_margin, var_floor);
+    if (r >= 0) {
+        analyse(c);
+    }
+    return r;
+}
+
+/* The guard at the end of every public call: the covariance the filter keeps. */
+int instr_cov_guard(att_cov_t *c, ekf_scalar_t rel_margin, ekf_scalar_t var_floor)
+{
+    const int r = att_cov_guard(c, rel_margin, var_floor);
     if (r >= 0) {
         analyse(c);
     }

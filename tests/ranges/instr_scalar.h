@@ -46,8 +46,7 @@ double instr_atan2(double y, double x);
 
 #if !defined(INSTR_NO_COV)
 #define att_cov_set_diag instr_cov_set_diag
-#define att_cov_propagate instr_cov_propagate
-#define att_cov_increment_var instr_cov_increment_var
+#define att_cov_predict instr_cov_predict
 #define att_cov_add_rate_noise instr_cov_add_rate_noise
 #define att_cov_add_diag instr_cov_add_diag
 #define att_cov_add_var instr_cov_add_var
@@ -58,6 +57,7 @@ double instr_atan2(double y, double x);
 #define att_cov_update_unit instr_cov_update_unit
 #define att_cov_update_tilt instr_cov_update_tilt
 #define att_cov_ensure_pd instr_cov_ensure_pd
+#define att_cov_guard instr_cov_guard
 #endif
 
 #endif /* INSTR_SCALAR_H */
