@@ -50,6 +50,11 @@ extern "C" {
 #endif
 
 #ifndef EKF_FX_FRAC
+/* The fixed-point code shifts negative values right and needs the arithmetic shift (floor
+ * division by a power of two) that GCC, Clang and the Cortex-M compilers implement; C99
+ * leaves it implementation-defined (6.5.7), so a compiler that differs is refused here. */
+typedef char ekf_fx_needs_arithmetic_right_shift[((-1 >> 1) == -1 && (INT32_MIN >> 31) == -1) ? 1 : -1];
+
 #define EKF_FX_FRAC 34
 #endif
 #if EKF_FX_FRAC < 33 || EKF_FX_FRAC > 52
