@@ -38,6 +38,10 @@ static ekf_status_t check_vec(const ekf_scalar_t vec[3], ekf_scalar_t range)
     if (vec == NULL) {
         return EKF_ERR_NULL;
     }
+    /* the normal case in three comparisons (range is finite: NaN and inf fail them) */
+    if (ekf_abs(vec[0]) <= range && ekf_abs(vec[1]) <= range && ekf_abs(vec[2]) <= range) {
+        return EKF_OK;
+    }
     for (i = 0; i < 3; ++i) {
         if (!ekf_isfinite(vec[i])) {
             return EKF_ERR_NOT_FINITE;

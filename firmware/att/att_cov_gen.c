@@ -16,6 +16,7 @@
 #if defined(ATT_COV_GENERATED)
 
 #include <stddef.h>
+#include <string.h>
 
 /* A single-precision FPU with the GNU assembler syntax (update_common's rows in VLDM/VSTM). */
 #if defined(EKF_SCALAR_FLOAT) && defined(__GNUC__) && defined(__arm__) && defined(__ARM_FP) && ((__ARM_FP & 4) != 0)
@@ -335,6 +336,21 @@ static ekf_scalar_t tolerance(ekf_scalar_t pii, ekf_scalar_t ki, ekf_scalar_t bi
     return tol;
 }
 
+/* The word of v that holds its sign bit (bit 31): ORed over the new variances, two
+ * instructions each on the FPU (a move and an OR) where a comparison takes four. */
+static inline uint32_t sign_word(ekf_scalar_t v)
+{
+#if defined(EKF_SCALAR_DOUBLE)
+    uint64_t u;
+    memcpy(&u, &v, sizeof u);
+    return (uint32_t)(u >> 32);
+#else
+    uint32_t u;
+    memcpy(&u, &v, sizeof u);
+    return u;
+#endif
+}
+
 /* 1 if a new variance P_ii - K_i b_i (K = b inv_s) is negative beyond ekf_update_scalar's
  * rounding allowance: the update would make P indefinite (only called when one is
  * negative at all, which is rare). */
@@ -380,7 +396,7 @@ static ekf_status_t update_common(att_cov_t *c, ekf_scalar_t x[ATT_N], const ekf
     ekf_scalar_t *const p = c->p;
     const ekf_scalar_t s = ekf_add(hb, r_var);
     ekf_scalar_t inv_s, bad;
-    int neg = 0;
+    uint32_t neg = 0u; /* bit 31: a new variance negative (or -0) */
     if (info != NULL) {
         info->innovation = nu;
         info->variance = s;
@@ -407,57 +423,57 @@ static ekf_status_t update_common(att_cov_t *c, ekf_scalar_t x[ATT_N], const ekf
         const ekf_scalar_t k = ekf_mul(b[0], inv_s);
         const ekf_scalar_t v = ekf_mac(p[0], ekf_neg(k), b[0]);
         bad = ekf_finite_acc(ekf_finite_acc(bad, ekf_mac(x[0], k, nu)), v);
-        neg |= v < EKF_C(0);
+        neg |= sign_word(v);
     }
     { /* Q */
         const ekf_scalar_t k = ekf_mul(b[1], inv_s);
         const ekf_scalar_t v = ekf_mac(p[2], ekf_neg(k), b[1]);
         bad = ekf_finite_acc(ekf_finite_acc(bad, ekf_mac(x[1], k, nu)), v);
-        neg |= v < EKF_C(0);
+        neg |= sign_word(v);
     }
     { /* R */
         const ekf_scalar_t k = ekf_mul(b[2], inv_s);
         const ekf_scalar_t v = ekf_mac(p[5], ekf_neg(k), b[2]);
         bad = ekf_finite_acc(ekf_finite_acc(bad, ekf_mac(x[2], k, nu)), v);
-        neg |= v < EKF_C(0);
+        neg |= sign_word(v);
     }
     { /* PHI */
         const ekf_scalar_t k = ekf_mul(b[3], inv_s);
         const ekf_scalar_t v = ekf_mac(p[9], ekf_neg(k), b[3]);
         bad = ekf_finite_acc(ekf_finite_acc(bad, ekf_mac(x[3], k, nu)), v);
-        neg |= v < EKF_C(0);
+        neg |= sign_word(v);
     }
     { /* THETA */
         const ekf_scalar_t k = ekf_mul(b[4], inv_s);
         const ekf_scalar_t v = ekf_mac(p[14], ekf_neg(k), b[4]);
         bad = ekf_finite_acc(ekf_finite_acc(bad, ekf_mac(x[4], k, nu)), v);
-        neg |= v < EKF_C(0);
+        neg |= sign_word(v);
     }
     { /* PSI */
         const ekf_scalar_t k = ekf_mul(b[5], inv_s);
         const ekf_scalar_t v = ekf_mac(p[20], ekf_neg(k), b[5]);
         bad = ekf_finite_acc(ekf_finite_acc(bad, ekf_mac(x[5], k, nu)), v);
-        neg |= v < EKF_C(0);
+        neg |= sign_word(v);
     }
     { /* PHID */
         const ekf_scalar_t k = ekf_mul(b[6], inv_s);
         const ekf_scalar_t v = ekf_mac(p[27], ekf_neg(k), b[6]);
         bad = ekf_finite_acc(ekf_finite_acc(bad, ekf_mac(x[6], k, nu)), v);
-        neg |= v < EKF_C(0);
+        neg |= sign_word(v);
     }
     { /* THETAD */
         const ekf_scalar_t k = ekf_mul(b[7], inv_s);
         const ekf_scalar_t v = ekf_mac(p[35], ekf_neg(k), b[7]);
         bad = ekf_finite_acc(ekf_finite_acc(bad, ekf_mac(x[7], k, nu)), v);
-        neg |= v < EKF_C(0);
+        neg |= sign_word(v);
     }
     { /* PSID */
         const ekf_scalar_t k = ekf_mul(b[8], inv_s);
         const ekf_scalar_t v = ekf_mac(p[44], ekf_neg(k), b[8]);
         bad = ekf_finite_acc(ekf_finite_acc(bad, ekf_mac(x[8], k, nu)), v);
-        neg |= v < EKF_C(0);
+        neg |= sign_word(v);
     }
-    if (!(bad == EKF_C(0)) || (neg && indefinite(p, b, inv_s))) {
+    if (!(bad == EKF_C(0)) || ((neg >> 31) != 0u && indefinite(p, b, inv_s))) {
         return EKF_ERR_NUMERIC;
     }
 #if ATT_COV_VFP_SP

@@ -289,7 +289,7 @@ def update_common() -> str:
         chk.raw(f"    const ekf_scalar_t k = ekf_mul(b[{i}], inv_s);")
         chk.raw(f"    const ekf_scalar_t v = ekf_mac(p[{L(i, i)}], ekf_neg(k), b[{i}]);")
         chk.raw(f"    bad = ekf_finite_acc(ekf_finite_acc(bad, ekf_mac(x[{i}], k, nu)), v);")
-        chk.raw("    neg |= v < EKF_C(0);")
+        chk.raw("    neg |= sign_word(v);")
         chk.raw("}")
     upd = Block("        ")
     for i in range(N):
@@ -340,7 +340,7 @@ static ekf_status_t update_common(att_cov_t *c, ekf_scalar_t x[ATT_N], const ekf
     ekf_scalar_t *const p = c->p;
     const ekf_scalar_t s = ekf_add(hb, r_var);
     ekf_scalar_t inv_s, bad;
-    int neg = 0;
+    uint32_t neg = 0u; /* bit 31: a new variance negative (or -0) */
     if (info != NULL) {{
         info->innovation = nu;
         info->variance = s;
@@ -364,7 +364,7 @@ static ekf_status_t update_common(att_cov_t *c, ekf_scalar_t x[ATT_N], const ekf
     inv_s = ekf_div(EKF_C(1), s);
     bad = EKF_C(0);
 {chk.text()}
-    if (!(bad == EKF_C(0)) || (neg && indefinite(p, b, inv_s))) {{
+    if (!(bad == EKF_C(0)) || ((neg >> 31) != 0u && indefinite(p, b, inv_s))) {{
         return EKF_ERR_NUMERIC;
     }}
 #if ATT_COV_VFP_SP
@@ -442,6 +442,7 @@ TEMPLATE = '''/*
 #if defined(ATT_COV_GENERATED)
 
 #include <stddef.h>
+#include <string.h>
 
 /* A single-precision FPU with the GNU assembler syntax (update_common's rows in VLDM/VSTM). */
 #if defined(EKF_SCALAR_FLOAT) && defined(__GNUC__) && defined(__arm__) && defined(__ARM_FP) && ((__ARM_FP & 4) != 0)
@@ -616,6 +617,21 @@ static ekf_scalar_t tolerance(ekf_scalar_t pii, ekf_scalar_t ki, ekf_scalar_t bi
         tol = ekf_mac(tol, ekf_mul(cn, EKF_SCALAR_ABS_EPS), fac);
     }}
     return tol;
+}}
+
+/* The word of v that holds its sign bit (bit 31): ORed over the new variances, two
+ * instructions each on the FPU (a move and an OR) where a comparison takes four. */
+static inline uint32_t sign_word(ekf_scalar_t v)
+{{
+#if defined(EKF_SCALAR_DOUBLE)
+    uint64_t u;
+    memcpy(&u, &v, sizeof u);
+    return (uint32_t)(u >> 32);
+#else
+    uint32_t u;
+    memcpy(&u, &v, sizeof u);
+    return u;
+#endif
 }}
 
 /* 1 if a new variance P_ii - K_i b_i (K = b inv_s) is negative beyond ekf_update_scalar's
