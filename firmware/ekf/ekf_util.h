@@ -13,14 +13,12 @@
 extern "C" {
 #endif
 
-/* Counts one event; the counter stays at UINT32_MAX instead of wrapping. (Always inline
- * with GCC: at -Os it would keep a called copy per file, dearer than the body.) */
-#if defined(__GNUC__)
-__attribute__((always_inline))
-#endif
+/* Counts one event; the counter stays at UINT32_MAX instead of wrapping. */
 static inline void ekf_count(uint32_t *c)
 {
-    *c += (*c != UINT32_MAX) ? 1u : 0u;
+    if (*c != UINT32_MAX) {
+        ++*c;
+    }
 }
 
 /* 1 if v is finite and lo <= v <= hi. */

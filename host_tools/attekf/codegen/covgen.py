@@ -451,6 +451,14 @@ TEMPLATE = '''/*
 #define ATT_COV_VFP_SP 0
 #endif
 
+/* Small helpers inlined even at -Os, where GCC would call them (the call costs as much as
+ * the body). */
+#if defined(__GNUC__)
+#define EKF_GEN_INLINE static inline __attribute__((always_inline))
+#else
+#define EKF_GEN_INLINE static inline
+#endif
+
 {table}
 /* ---- set and read ---- */
 
@@ -621,7 +629,7 @@ static ekf_scalar_t tolerance(ekf_scalar_t pii, ekf_scalar_t ki, ekf_scalar_t bi
 
 /* The word of v that holds its sign bit (bit 31): ORed over the new variances, two
  * instructions each on the FPU (a move and an OR) where a comparison takes four. */
-static inline uint32_t sign_word(ekf_scalar_t v)
+EKF_GEN_INLINE uint32_t sign_word(ekf_scalar_t v)
 {{
 #if defined(EKF_SCALAR_DOUBLE)
     uint64_t u;
@@ -652,7 +660,7 @@ static int indefinite(const ekf_scalar_t p[ATT_COV_NP], const ekf_scalar_t b[ATT
 }}
 
 /* The checks ekf_update_scalar makes before it forms S; info zeroed. */
-static inline ekf_status_t update_args(ekf_scalar_t nu, ekf_scalar_t r_var, ekf_innov_t *info)
+EKF_GEN_INLINE ekf_status_t update_args(ekf_scalar_t nu, ekf_scalar_t r_var, ekf_innov_t *info)
 {{
     if (info != NULL) {{
         info->innovation = EKF_C(0);
@@ -675,14 +683,12 @@ ekf_status_t att_cov_update_unit(att_cov_t *c, ekf_scalar_t x[ATT_N], int idx, e
 {{
     const uint8_t *const row = att_cov_row[idx];
     ekf_scalar_t b[ATT_N];
-    int i;
     const ekf_status_t st = update_args(nu, r_var, info);
     if (st != EKF_OK) {{
         return st;
     }}
-    for (i = 0; i < ATT_N; ++i) {{
-        b[i] = c->p[row[i]]; /* P H^T: column idx (times h = 1, exact) */
-    }}
+    /* P H^T: column idx (times h = 1, exact), unrolled (a loop costs twice the loads) */
+{unit_gather}
     return update_common(c, x, b, b[idx], nu, r_var, gate, var_floor, info);
 }}
 
@@ -795,6 +801,10 @@ typedef int att_cov_gen_not_selected;
 '''
 
 
+def unit_gather() -> str:
+    return "\n".join(f"    b[{i}] = c->p[row[{i}]];" for i in range(N))
+
+
 def tilt_b() -> str:
     return "\n".join(f"    b[{i}] = ekf_mac(ekf_mul(p[{L(i, 3)}], h_phi), p[{L(i, 4)}], h_theta);" for i in range(N))
 
@@ -807,6 +817,6 @@ def guard_diag() -> str:
 
 
 def build() -> Dict[str, str]:
-    text = TEMPLATE.format(script=SCRIPT, np=NP, table=_table(), predict=predict_kernel(), tilt_b=tilt_b(), guard_diag=guard_diag(),
+    text = TEMPLATE.format(script=SCRIPT, np=NP, table=_table(), predict=predict_kernel(), tilt_b=tilt_b(), unit_gather=unit_gather(), guard_diag=guard_diag(),
                            update_common=update_common(), ldl=ldl_kernel())
     return {"att_cov_gen.c": text}
