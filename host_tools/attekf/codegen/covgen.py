@@ -475,7 +475,7 @@ void att_cov_set_diag(att_cov_t *c, const ekf_scalar_t var[ATT_N])
 
 ekf_scalar_t att_cov_get(const att_cov_t *c, int i, int j) {{ return c->p[att_cov_row[i][j]]; }}
 
-ekf_scalar_t att_cov_var(const att_cov_t *c, int i) {{ return c->p[att_cov_row[i][i]]; }}
+/* (att_cov_var: inline in att_cov.h) */
 
 void att_cov_to_full(const att_cov_t *c, ekf_scalar_t P[ATT_N * ATT_N])
 {{
@@ -520,27 +520,7 @@ void att_cov_add_rate_noise(att_cov_t *c, const ekf_scalar_t g[9], const ekf_sca
         }}
     }}
 }}
-void att_cov_add_diag(att_cov_t *c, int first, int len, ekf_scalar_t var)
-{{
-    int i;
-    for (i = first; i < first + len; ++i) {{
-        c->p[att_cov_row[i][i]] = ekf_add(c->p[att_cov_row[i][i]], var);
-    }}
-}}
-
-void att_cov_add_var(att_cov_t *c, int i, ekf_scalar_t var)
-{{
-    c->p[att_cov_row[i][i]] = ekf_add(c->p[att_cov_row[i][i]], var);
-}}
-
-void att_cov_scale_diag(att_cov_t *c, int first, int len, ekf_scalar_t rel)
-{{
-    int i;
-    for (i = first; i < first + len; ++i) {{
-        const int k = att_cov_row[i][i];
-        c->p[k] = ekf_mac(c->p[k], c->p[k], rel);
-    }}
-}}
+/* (att_cov_add_diag, att_cov_add_var, att_cov_scale_diag: inline in att_cov.h) */
 
 /* ---- bounds and remaps ---- */
 
@@ -583,7 +563,8 @@ void att_cov_reset_state(att_cov_t *c, int i, ekf_scalar_t var)
     c->p[att_cov_row[i][i]] = var;
 }}
 
-int att_cov_limit_variance(att_cov_t *c, int i, ekf_scalar_t max_var)
+/* att_cov_limit_variance once its inline test (att_cov.h) has found P_ii > max_var. */
+int att_cov_gen_limit_variance(att_cov_t *c, int i, ekf_scalar_t max_var)
 {{
     const int ii = att_cov_row[i][i];
     ekf_scalar_t scale;
