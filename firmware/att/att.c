@@ -120,13 +120,23 @@ static ekf_status_t restore(att_ekf_t *f, const att_vars_t *saved, ekf_status_t 
  * last finiteness check. EKF_OK, or EKF_ERR_NUMERIC (the variables restored, counted). */
 static ekf_status_t commit(att_ekf_t *f, const att_vars_t *saved)
 {
-    if (att_guard_covariance(&f->vars, &f->settings) != EKF_OK || !ekf_all_finite(f->vars.x, ATT_N)) {
+    if (att_guard_covariance(&f->vars, &f->settings) != EKF_OK || !att_state_finite(f->vars.x)) {
         return restore(f, saved, EKF_ERR_NUMERIC);
     }
     return EKF_OK;
 }
 
 /* ---- helpers shared by the stages (att_internal.h) ---- */
+
+typedef char att_state_finite_needs_9_states[(ATT_N == 9) ? 1 : -1];
+
+int att_state_finite(const ekf_scalar_t x[ATT_N])
+{
+    ekf_scalar_t acc = ekf_finite_acc(ekf_finite_acc(ekf_finite_acc(EKF_C(0), x[0]), x[1]), x[2]);
+    acc = ekf_finite_acc(ekf_finite_acc(ekf_finite_acc(acc, x[3]), x[4]), x[5]);
+    acc = ekf_finite_acc(ekf_finite_acc(ekf_finite_acc(acc, x[6]), x[7]), x[8]);
+    return acc == EKF_C(0);
+}
 
 ekf_scalar_t att_norm3(const ekf_scalar_t vec[3])
 {
