@@ -77,13 +77,19 @@ enum { HI_BIG, HI_1E_2, HI_1, HI_60, HI_GIMBAL, HI_HALF_PI, HI_PI, HI_TWO_PI };
 /* What the square of a setting must be in the build's scalar (see representable). */
 enum { SQ_ANY, SQ_FINITE, SQ_POSITIVE, SQ_ZERO_OR_POSITIVE };
 
-/* One setting: its offset in att_settings_t, lo <= v <= hi (finite), and its square. */
+/* One setting in two bytes: its slot (offset in att_settings_t in scalars: every field
+ * before align_samples is a scalar, the rest settings too), and lo <= v <= hi (finite) and
+ * its square packed as lo | hi << 3 | square << 6. */
 typedef struct {
-    uint16_t offset;
-    uint8_t lo, hi, square;
+    uint8_t slot, bounds;
 } setting_range_t;
 
-#define RANGE(field, lo, hi, sq) {(uint16_t)offsetof(att_settings_t, field), lo, hi, sq}
+#define RANGE(field, lo, hi, sq) \
+    {(uint8_t)(offsetof(att_settings_t, field) / sizeof(ekf_scalar_t)), (uint8_t)((lo) | (hi) << 3 | (sq) << 6)}
+typedef char att_settings_scalar_slots[(offsetof(att_settings_t, rest) % sizeof(ekf_scalar_t) == 0 &&
+                                        offsetof(att_settings_t, gravity) % sizeof(ekf_scalar_t) == 0)
+                                           ? 1
+                                           : -1];
 
 /* Every scalar setting with fixed bounds; the bounds that depend on other settings are
  * checked in att_settings_check. A table, not a chain of comparisons: a quarter of the
@@ -133,12 +139,13 @@ static const setting_range_t ranges[] = {
  * (its square is below one LSB). */
 static int setting_ok(const att_settings_t *s, const setting_range_t *r)
 {
-    const ekf_scalar_t v = *(const ekf_scalar_t *)(const void *)((const char *)s + r->offset);
+    const ekf_scalar_t v =
+        *(const ekf_scalar_t *)(const void *)((const char *)s + (size_t)r->slot * sizeof(ekf_scalar_t));
     const ekf_scalar_t q = ekf_sq(v);
-    if (!ekf_in_range(v, lo_bound[r->lo], hi_bound[r->hi])) {
+    if (!ekf_in_range(v, lo_bound[r->bounds & 7u], hi_bound[(r->bounds >> 3) & 7u])) {
         return 0;
     }
-    switch (r->square) {
+    switch (r->bounds >> 6) {
     case SQ_FINITE: return ekf_isfinite(q);
     case SQ_POSITIVE: return ekf_isfinite(q) && q > EKF_C(0);
     case SQ_ZERO_OR_POSITIVE: return v == EKF_C(0) || (ekf_isfinite(q) && q > EKF_C(0));
