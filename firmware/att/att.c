@@ -42,17 +42,13 @@ static ekf_status_t check_vec(const ekf_scalar_t vec[3], ekf_scalar_t range)
     if (ekf_abs(vec[0]) <= range && ekf_abs(vec[1]) <= range && ekf_abs(vec[2]) <= range) {
         return EKF_OK;
     }
+    /* a component is not finite (that error first) or beyond the range */
     for (i = 0; i < 3; ++i) {
         if (!ekf_isfinite(vec[i])) {
             return EKF_ERR_NOT_FINITE;
         }
     }
-    for (i = 0; i < 3; ++i) {
-        if (ekf_abs(vec[i]) > range) {
-            return EKF_ERR_RANGE;
-        }
-    }
-    return EKF_OK;
+    return EKF_ERR_RANGE;
 }
 
 /* A time step in (0, dt_max]. */
