@@ -25,6 +25,14 @@
 #define ATT_COV_VFP_SP 0
 #endif
 
+/* SSE (every x86-64 CPU) in the float build: update_common's rows four entries at a time. */
+#if defined(EKF_SCALAR_FLOAT) && defined(__SSE__) && (defined(__GNUC__) || defined(__clang__))
+#define ATT_COV_SSE 1
+#include <xmmintrin.h>
+#else
+#define ATT_COV_SSE 0
+#endif
+
 /* Small helpers inlined even at -Os, where GCC would call them (the call costs as much as
  * the body). */
 #if defined(__GNUC__)
@@ -591,6 +599,59 @@ static ekf_status_t update_common(att_cov_t *c, ekf_scalar_t x[ATT_N], const ekf
             : [p] "+r"(pp)
             : [k0] "t"(k0), [k1] "t"(k1), [k2] "t"(k2), [k3] "t"(k3), [k4] "t"(k4), [k5] "t"(k5), [k6] "t"(k6), [k7] "t"(k7), [k8] "t"(k8), [b0] "t"(b0), [b1] "t"(b1), [b2] "t"(b2), [b3] "t"(b3), [b4] "t"(b4), [b5] "t"(b5), [b6] "t"(b6), [b7] "t"(b7), [b8] "t"(b8), [fl] "t"(var_floor), [nu] "t"(nu), [x] "r"(x)
             : "s0", "s1", "s2", "s3", "s4", "s5", "s6", "s7", "s8", "cc", "memory");
+    }
+#elif ATT_COV_SSE
+    {
+        const __m128 vs = _mm_set1_ps(inv_s), vnu = _mm_set1_ps(nu);
+        const __m128 k03 = _mm_mul_ps(_mm_loadu_ps(&b[0]), vs), k47 = _mm_mul_ps(_mm_loadu_ps(&b[4]), vs);
+        ekf_scalar_t k[ATT_N];
+        _mm_storeu_ps(&k[0], k03);
+        _mm_storeu_ps(&k[4], k47);
+        k[8] = ekf_mul(b[8], inv_s);
+        { const ekf_scalar_t bj = b[0];
+            { const ekf_scalar_t v = ekf_sub(p[0], ekf_mul(k[0], bj)); p[0] = (v < var_floor) ? var_floor : v; } }
+        { const ekf_scalar_t bj = b[1];
+            p[1] = ekf_sub(p[1], ekf_mul(k[0], bj));
+            { const ekf_scalar_t v = ekf_sub(p[2], ekf_mul(k[1], bj)); p[2] = (v < var_floor) ? var_floor : v; } }
+        { const ekf_scalar_t bj = b[2];
+            p[3] = ekf_sub(p[3], ekf_mul(k[0], bj));
+            p[4] = ekf_sub(p[4], ekf_mul(k[1], bj));
+            { const ekf_scalar_t v = ekf_sub(p[5], ekf_mul(k[2], bj)); p[5] = (v < var_floor) ? var_floor : v; } }
+        { const ekf_scalar_t bj = b[3];
+            p[6] = ekf_sub(p[6], ekf_mul(k[0], bj));
+            p[7] = ekf_sub(p[7], ekf_mul(k[1], bj));
+            p[8] = ekf_sub(p[8], ekf_mul(k[2], bj));
+            { const ekf_scalar_t v = ekf_sub(p[9], ekf_mul(k[3], bj)); p[9] = (v < var_floor) ? var_floor : v; } }
+        { const ekf_scalar_t bj = b[4];
+            const __m128 vb = _mm_set1_ps(bj);
+            _mm_storeu_ps(&p[10], _mm_sub_ps(_mm_loadu_ps(&p[10]), _mm_mul_ps(k03, vb)));
+            { const ekf_scalar_t v = ekf_sub(p[14], ekf_mul(k[4], bj)); p[14] = (v < var_floor) ? var_floor : v; } }
+        { const ekf_scalar_t bj = b[5];
+            const __m128 vb = _mm_set1_ps(bj);
+            _mm_storeu_ps(&p[15], _mm_sub_ps(_mm_loadu_ps(&p[15]), _mm_mul_ps(k03, vb)));
+            p[19] = ekf_sub(p[19], ekf_mul(k[4], bj));
+            { const ekf_scalar_t v = ekf_sub(p[20], ekf_mul(k[5], bj)); p[20] = (v < var_floor) ? var_floor : v; } }
+        { const ekf_scalar_t bj = b[6];
+            const __m128 vb = _mm_set1_ps(bj);
+            _mm_storeu_ps(&p[21], _mm_sub_ps(_mm_loadu_ps(&p[21]), _mm_mul_ps(k03, vb)));
+            p[25] = ekf_sub(p[25], ekf_mul(k[4], bj));
+            p[26] = ekf_sub(p[26], ekf_mul(k[5], bj));
+            { const ekf_scalar_t v = ekf_sub(p[27], ekf_mul(k[6], bj)); p[27] = (v < var_floor) ? var_floor : v; } }
+        { const ekf_scalar_t bj = b[7];
+            const __m128 vb = _mm_set1_ps(bj);
+            _mm_storeu_ps(&p[28], _mm_sub_ps(_mm_loadu_ps(&p[28]), _mm_mul_ps(k03, vb)));
+            p[32] = ekf_sub(p[32], ekf_mul(k[4], bj));
+            p[33] = ekf_sub(p[33], ekf_mul(k[5], bj));
+            p[34] = ekf_sub(p[34], ekf_mul(k[6], bj));
+            { const ekf_scalar_t v = ekf_sub(p[35], ekf_mul(k[7], bj)); p[35] = (v < var_floor) ? var_floor : v; } }
+        { const ekf_scalar_t bj = b[8];
+            const __m128 vb = _mm_set1_ps(bj);
+            _mm_storeu_ps(&p[36], _mm_sub_ps(_mm_loadu_ps(&p[36]), _mm_mul_ps(k03, vb)));
+            _mm_storeu_ps(&p[40], _mm_sub_ps(_mm_loadu_ps(&p[40]), _mm_mul_ps(k47, vb)));
+            { const ekf_scalar_t v = ekf_sub(p[44], ekf_mul(k[8], bj)); p[44] = (v < var_floor) ? var_floor : v; } }
+        _mm_storeu_ps(&x[0], _mm_add_ps(_mm_loadu_ps(&x[0]), _mm_mul_ps(k03, vnu)));
+        _mm_storeu_ps(&x[4], _mm_add_ps(_mm_loadu_ps(&x[4]), _mm_mul_ps(k47, vnu)));
+        x[8] = ekf_mac(x[8], k[8], nu);
     }
 #else
     {

@@ -329,6 +329,32 @@ def update_common() -> str:
     vfp.raw('    : [p] "+r"(pp)')
     vfp.raw(f"    : {ins}")
     vfp.raw(f"    : {clob});")
+    # The same with SSE on x86-64 (float): a row's off-diagonal entries four at a time with
+    # MULPS / SUBPS, which round each lane like MULSS / SUBSS (P_ij - K_i b_j is the value of
+    # P_ij + (-K_i) b_j): the same bits as the C above, in about half the instructions.
+    sse = Block("        ")
+    sse.raw("const __m128 vs = _mm_set1_ps(inv_s), vnu = _mm_set1_ps(nu);")
+    sse.raw("const __m128 k03 = _mm_mul_ps(_mm_loadu_ps(&b[0]), vs), k47 = _mm_mul_ps(_mm_loadu_ps(&b[4]), vs);")
+    sse.raw("ekf_scalar_t k[ATT_N];")
+    sse.raw("_mm_storeu_ps(&k[0], k03);")
+    sse.raw("_mm_storeu_ps(&k[4], k47);")
+    sse.raw("k[8] = ekf_mul(b[8], inv_s);")
+    kv = ["k03", "k47"]
+    for j in range(N):
+        sse.raw(f"{{ const ekf_scalar_t bj = b[{j}];")
+        chunks = j // 4
+        if chunks:
+            sse.raw("    const __m128 vb = _mm_set1_ps(bj);")
+        for c_ in range(chunks):
+            m = L(j, 4 * c_)
+            sse.raw(f"    _mm_storeu_ps(&p[{m}], _mm_sub_ps(_mm_loadu_ps(&p[{m}]), _mm_mul_ps({kv[c_]}, vb)));")
+        for i in range(4 * chunks, j):
+            sse.raw(f"    p[{L(j, i)}] = ekf_sub(p[{L(j, i)}], ekf_mul(k[{i}], bj));")
+        sse.raw(f"    {{ const ekf_scalar_t v = ekf_sub(p[{L(j, j)}], ekf_mul(k[{j}], bj)); "
+                f"p[{L(j, j)}] = (v < var_floor) ? var_floor : v; }} }}")
+    sse.raw("_mm_storeu_ps(&x[0], _mm_add_ps(_mm_loadu_ps(&x[0]), _mm_mul_ps(k03, vnu)));")
+    sse.raw("_mm_storeu_ps(&x[4], _mm_add_ps(_mm_loadu_ps(&x[4]), _mm_mul_ps(k47, vnu)));")
+    sse.raw("x[8] = ekf_mac(x[8], k[8], nu);")
     return f"""/* The rest of ekf_update_scalar once b = P H^T and h b are formed, for n = 9 on packed
  * storage: S, its refusal, the gate, the gain and every check before the first write, then
  * P - K b^T (P_ij - K_i b_j for i <= j, the diagonal floored) and x + K nu. The same
@@ -370,6 +396,10 @@ static ekf_status_t update_common(att_cov_t *c, ekf_scalar_t x[ATT_N], const ekf
 #if ATT_COV_VFP_SP
     {{
 {vfp.text()}
+    }}
+#elif ATT_COV_SSE
+    {{
+{sse.text()}
     }}
 #else
     {{
@@ -449,6 +479,14 @@ TEMPLATE = '''/*
 #define ATT_COV_VFP_SP 1
 #else
 #define ATT_COV_VFP_SP 0
+#endif
+
+/* SSE (every x86-64 CPU) in the float build: update_common's rows four entries at a time. */
+#if defined(EKF_SCALAR_FLOAT) && defined(__SSE__) && (defined(__GNUC__) || defined(__clang__))
+#define ATT_COV_SSE 1
+#include <xmmintrin.h>
+#else
+#define ATT_COV_SSE 0
 #endif
 
 /* Small helpers inlined even at -Os, where GCC would call them (the call costs as much as
