@@ -36,9 +36,9 @@
 /* Small helpers inlined even at -Os, where GCC would call them (the call costs as much as
  * the body). */
 #if defined(__GNUC__)
-#define EKF_GEN_INLINE static inline __attribute__((always_inline))
+#define ATT_COV_INLINE static inline __attribute__((always_inline))
 #else
-#define EKF_GEN_INLINE static inline
+#define ATT_COV_INLINE static inline
 #endif
 
 /* Packed index of P_ij for any i, j (row i of P: att_cov_row[i][0..8]). */
@@ -335,7 +335,7 @@ static ekf_scalar_t tolerance(ekf_scalar_t pii, ekf_scalar_t ki, ekf_scalar_t bi
 
 /* The word of v that holds its sign bit (bit 31): ORed over the new variances, two
  * instructions each on the FPU (a move and an OR) where a comparison takes four. */
-EKF_GEN_INLINE uint32_t sign_word(ekf_scalar_t v)
+ATT_COV_INLINE uint32_t sign_word(ekf_scalar_t v)
 {
 #if defined(EKF_SCALAR_DOUBLE)
     uint64_t u;
@@ -366,7 +366,7 @@ static int indefinite(const ekf_scalar_t p[ATT_COV_NP], const ekf_scalar_t b[ATT
 }
 
 /* The checks ekf_update_scalar makes before it forms S; info zeroed. */
-EKF_GEN_INLINE ekf_status_t update_args(ekf_scalar_t nu, ekf_scalar_t r_var, ekf_innov_t *info)
+ATT_COV_INLINE ekf_status_t update_args(ekf_scalar_t nu, ekf_scalar_t r_var, ekf_innov_t *info)
 {
     if (info != NULL) {
         info->innovation = EKF_C(0);
