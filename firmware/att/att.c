@@ -38,17 +38,17 @@ static ekf_status_t check_vec(const ekf_scalar_t vec[3], ekf_scalar_t range)
     if (vec == NULL) {
         return EKF_ERR_NULL;
     }
+    /* the normal case in three comparisons (range is finite: NaN and inf fail them) */
+    if (ekf_abs(vec[0]) <= range && ekf_abs(vec[1]) <= range && ekf_abs(vec[2]) <= range) {
+        return EKF_OK;
+    }
+    /* a component is not finite (that error first) or beyond the range */
     for (i = 0; i < 3; ++i) {
         if (!ekf_isfinite(vec[i])) {
             return EKF_ERR_NOT_FINITE;
         }
     }
-    for (i = 0; i < 3; ++i) {
-        if (ekf_abs(vec[i]) > range) {
-            return EKF_ERR_RANGE;
-        }
-    }
-    return EKF_OK;
+    return EKF_ERR_RANGE;
 }
 
 /* A time step in (0, dt_max]. */
@@ -116,13 +116,23 @@ static ekf_status_t restore(att_ekf_t *f, const att_vars_t *saved, ekf_status_t 
  * last finiteness check. EKF_OK, or EKF_ERR_NUMERIC (the variables restored, counted). */
 static ekf_status_t commit(att_ekf_t *f, const att_vars_t *saved)
 {
-    if (att_guard_covariance(&f->vars, &f->settings) != EKF_OK || !ekf_all_finite(f->vars.x, ATT_N)) {
+    if (att_guard_covariance(&f->vars, &f->settings) != EKF_OK || !att_state_finite(f->vars.x)) {
         return restore(f, saved, EKF_ERR_NUMERIC);
     }
     return EKF_OK;
 }
 
 /* ---- helpers shared by the stages (att_internal.h) ---- */
+
+typedef char att_state_finite_needs_9_states[(ATT_N == 9) ? 1 : -1];
+
+int att_state_finite(const ekf_scalar_t x[ATT_N])
+{
+    ekf_scalar_t acc = ekf_finite_acc(ekf_finite_acc(ekf_finite_acc(EKF_C(0), x[0]), x[1]), x[2]);
+    acc = ekf_finite_acc(ekf_finite_acc(ekf_finite_acc(acc, x[3]), x[4]), x[5]);
+    acc = ekf_finite_acc(ekf_finite_acc(ekf_finite_acc(acc, x[6]), x[7]), x[8]);
+    return acc == EKF_C(0);
+}
 
 ekf_scalar_t att_norm3(const ekf_scalar_t vec[3])
 {

@@ -57,14 +57,30 @@ typedef struct {
 #error "att_cov.h: no covariance implementation selected (see ekf_config.h)"
 #endif
 
-/* ---- set and read ---- */
+/* ---- set and read ----
+ * On packed storage (ATT_COV_GENERATED) the reads and updates of single variances are
+ * inline: one load at a constant offset, where a call and the index table cost more than
+ * the body (ATT_COV_DIAG_FN, ATT_COV_DIAG_BODY); elsewhere they are functions. */
+#if defined(ATT_COV_GENERATED)
+/* P_ii's index in the packed lower triangle */
+#define ATT_COV_II(i) ((i) * ((i) + 3) / 2)
+#if defined(__GNUC__)
+#define ATT_COV_DIAG_FN static inline __attribute__((always_inline))
+#else
+#define ATT_COV_DIAG_FN static inline
+#endif
+#define ATT_COV_DIAG_BODY(body) body
+#else
+#define ATT_COV_DIAG_FN
+#define ATT_COV_DIAG_BODY(body) ;
+#endif
 
 /* P = diag(var): every off-diagonal entry zero. */
 void att_cov_set_diag(att_cov_t *c, const ekf_scalar_t var[ATT_N]);
 /* P_ij. */
 ekf_scalar_t att_cov_get(const att_cov_t *c, int i, int j);
 /* P_ii. */
-ekf_scalar_t att_cov_var(const att_cov_t *c, int i);
+ATT_COV_DIAG_FN ekf_scalar_t att_cov_var(const att_cov_t *c, int i) ATT_COV_DIAG_BODY({ return c->p[ATT_COV_II(i)]; })
 /* All of P, row-major, in the filter's scalar type. */
 void att_cov_to_full(const att_cov_t *c, ekf_scalar_t P[ATT_N * ATT_N]);
 /* P from a row-major symmetric matrix (its lower triangle is read, and mirrored). */
@@ -90,11 +106,23 @@ ekf_status_t att_cov_predict(att_cov_t *c, const ekf_scalar_t d1[ATT_GEN_F1_NNZ]
  * semi-definite matrix. */
 void att_cov_add_rate_noise(att_cov_t *c, const ekf_scalar_t g[9], const ekf_scalar_t var[3]);
 /* P_ii += var (>= 0) for i in first .. first+len-1. */
-void att_cov_add_diag(att_cov_t *c, int first, int len, ekf_scalar_t var);
+ATT_COV_DIAG_FN void att_cov_add_diag(att_cov_t *c, int first, int len, ekf_scalar_t var) ATT_COV_DIAG_BODY({
+    int i;
+    for (i = first; i < first + len; ++i) {
+        c->p[ATT_COV_II(i)] = ekf_add(c->p[ATT_COV_II(i)], var);
+    }
+})
 /* P_ii += var (>= 0) for the one state i. */
-void att_cov_add_var(att_cov_t *c, int i, ekf_scalar_t var);
+ATT_COV_DIAG_FN void att_cov_add_var(att_cov_t *c, int i, ekf_scalar_t var) ATT_COV_DIAG_BODY({
+    c->p[ATT_COV_II(i)] = ekf_add(c->p[ATT_COV_II(i)], var);
+})
 /* P_ii <- P_ii + rel P_ii (rel >= 0) for i in first .. first+len-1. */
-void att_cov_scale_diag(att_cov_t *c, int first, int len, ekf_scalar_t rel);
+ATT_COV_DIAG_FN void att_cov_scale_diag(att_cov_t *c, int first, int len, ekf_scalar_t rel) ATT_COV_DIAG_BODY({
+    int i;
+    for (i = first; i < first + len; ++i) {
+        c->p[ATT_COV_II(i)] = ekf_mac(c->p[ATT_COV_II(i)], c->p[ATT_COV_II(i)], rel);
+    }
+})
 
 /* ---- bounds and remaps ---- */
 
@@ -110,7 +138,12 @@ void att_cov_reset_state(att_cov_t *c, int i, ekf_scalar_t var);
 /* If P_ii > max_var (> 0): row and column i scaled by sqrt(max_var / P_ii), a congruence.
  * Returns 1 if P was changed, else 0 (also for a non-finite P_ii, left for the guard to
  * refuse). */
-int att_cov_limit_variance(att_cov_t *c, int i, ekf_scalar_t max_var);
+#if defined(ATT_COV_GENERATED)
+int att_cov_gen_limit_variance(att_cov_t *c, int i, ekf_scalar_t max_var);
+#endif
+ATT_COV_DIAG_FN int att_cov_limit_variance(att_cov_t *c, int i, ekf_scalar_t max_var) ATT_COV_DIAG_BODY({
+    return (c->p[ATT_COV_II(i)] > max_var) ? att_cov_gen_limit_variance(c, i, max_var) : 0;
+})
 /* Row and column i negated (diagonal unchanged): the covariance of the state with x_i
  * replaced by -x_i, a congruence (the pitch remap, att_model_normalise). */
 void att_cov_negate_state(att_cov_t *c, int i);

@@ -16,12 +16,29 @@
 #if defined(ATT_COV_GENERATED)
 
 #include <stddef.h>
+#include <string.h>
 
 /* A single-precision FPU with the GNU assembler syntax (update_common's rows in VLDM/VSTM). */
 #if defined(EKF_SCALAR_FLOAT) && defined(__GNUC__) && defined(__arm__) && defined(__ARM_FP) && ((__ARM_FP & 4) != 0)
 #define ATT_COV_VFP_SP 1
 #else
 #define ATT_COV_VFP_SP 0
+#endif
+
+/* SSE (every x86-64 CPU) in the float build: update_common's rows four entries at a time. */
+#if defined(EKF_SCALAR_FLOAT) && defined(__SSE__) && (defined(__GNUC__) || defined(__clang__))
+#define ATT_COV_SSE 1
+#include <xmmintrin.h>
+#else
+#define ATT_COV_SSE 0
+#endif
+
+/* Small helpers inlined even at -Os, where GCC would call them (the call costs as much as
+ * the body). */
+#if defined(__GNUC__)
+#define ATT_COV_INLINE static inline __attribute__((always_inline))
+#else
+#define ATT_COV_INLINE static inline
 #endif
 
 /* Packed index of P_ij for any i, j (row i of P: att_cov_row[i][0..8]). */
@@ -52,7 +69,7 @@ void att_cov_set_diag(att_cov_t *c, const ekf_scalar_t var[ATT_N])
 
 ekf_scalar_t att_cov_get(const att_cov_t *c, int i, int j) { return c->p[att_cov_row[i][j]]; }
 
-ekf_scalar_t att_cov_var(const att_cov_t *c, int i) { return c->p[att_cov_row[i][i]]; }
+/* (att_cov_var: inline in att_cov.h) */
 
 void att_cov_to_full(const att_cov_t *c, ekf_scalar_t P[ATT_N * ATT_N])
 {
@@ -228,27 +245,7 @@ void att_cov_add_rate_noise(att_cov_t *c, const ekf_scalar_t g[9], const ekf_sca
         }
     }
 }
-void att_cov_add_diag(att_cov_t *c, int first, int len, ekf_scalar_t var)
-{
-    int i;
-    for (i = first; i < first + len; ++i) {
-        c->p[att_cov_row[i][i]] = ekf_add(c->p[att_cov_row[i][i]], var);
-    }
-}
-
-void att_cov_add_var(att_cov_t *c, int i, ekf_scalar_t var)
-{
-    c->p[att_cov_row[i][i]] = ekf_add(c->p[att_cov_row[i][i]], var);
-}
-
-void att_cov_scale_diag(att_cov_t *c, int first, int len, ekf_scalar_t rel)
-{
-    int i;
-    for (i = first; i < first + len; ++i) {
-        const int k = att_cov_row[i][i];
-        c->p[k] = ekf_mac(c->p[k], c->p[k], rel);
-    }
-}
+/* (att_cov_add_diag, att_cov_add_var, att_cov_scale_diag: inline in att_cov.h) */
 
 /* ---- bounds and remaps ---- */
 
@@ -291,7 +288,8 @@ void att_cov_reset_state(att_cov_t *c, int i, ekf_scalar_t var)
     c->p[att_cov_row[i][i]] = var;
 }
 
-int att_cov_limit_variance(att_cov_t *c, int i, ekf_scalar_t max_var)
+/* att_cov_limit_variance once its inline test (att_cov.h) has found P_ii > max_var. */
+int att_cov_gen_limit_variance(att_cov_t *c, int i, ekf_scalar_t max_var)
 {
     const int ii = att_cov_row[i][i];
     ekf_scalar_t scale;
@@ -335,6 +333,21 @@ static ekf_scalar_t tolerance(ekf_scalar_t pii, ekf_scalar_t ki, ekf_scalar_t bi
     return tol;
 }
 
+/* The word of v that holds its sign bit (bit 31): ORed over the new variances, two
+ * instructions each on the FPU (a move and an OR) where a comparison takes four. */
+ATT_COV_INLINE uint32_t sign_word(ekf_scalar_t v)
+{
+#if defined(EKF_SCALAR_DOUBLE)
+    uint64_t u;
+    memcpy(&u, &v, sizeof u);
+    return (uint32_t)(u >> 32);
+#else
+    uint32_t u;
+    memcpy(&u, &v, sizeof u);
+    return u;
+#endif
+}
+
 /* 1 if a new variance P_ii - K_i b_i (K = b inv_s) is negative beyond ekf_update_scalar's
  * rounding allowance: the update would make P indefinite (only called when one is
  * negative at all, which is rare). */
@@ -353,7 +366,7 @@ static int indefinite(const ekf_scalar_t p[ATT_COV_NP], const ekf_scalar_t b[ATT
 }
 
 /* The checks ekf_update_scalar makes before it forms S; info zeroed. */
-static inline ekf_status_t update_args(ekf_scalar_t nu, ekf_scalar_t r_var, ekf_innov_t *info)
+ATT_COV_INLINE ekf_status_t update_args(ekf_scalar_t nu, ekf_scalar_t r_var, ekf_innov_t *info)
 {
     if (info != NULL) {
         info->innovation = EKF_C(0);
@@ -380,7 +393,7 @@ static ekf_status_t update_common(att_cov_t *c, ekf_scalar_t x[ATT_N], const ekf
     ekf_scalar_t *const p = c->p;
     const ekf_scalar_t s = ekf_add(hb, r_var);
     ekf_scalar_t inv_s, bad;
-    int neg = 0;
+    uint32_t neg = 0u; /* bit 31: a new variance negative (or -0) */
     if (info != NULL) {
         info->innovation = nu;
         info->variance = s;
@@ -407,57 +420,57 @@ static ekf_status_t update_common(att_cov_t *c, ekf_scalar_t x[ATT_N], const ekf
         const ekf_scalar_t k = ekf_mul(b[0], inv_s);
         const ekf_scalar_t v = ekf_mac(p[0], ekf_neg(k), b[0]);
         bad = ekf_finite_acc(ekf_finite_acc(bad, ekf_mac(x[0], k, nu)), v);
-        neg |= v < EKF_C(0);
+        neg |= sign_word(v);
     }
     { /* Q */
         const ekf_scalar_t k = ekf_mul(b[1], inv_s);
         const ekf_scalar_t v = ekf_mac(p[2], ekf_neg(k), b[1]);
         bad = ekf_finite_acc(ekf_finite_acc(bad, ekf_mac(x[1], k, nu)), v);
-        neg |= v < EKF_C(0);
+        neg |= sign_word(v);
     }
     { /* R */
         const ekf_scalar_t k = ekf_mul(b[2], inv_s);
         const ekf_scalar_t v = ekf_mac(p[5], ekf_neg(k), b[2]);
         bad = ekf_finite_acc(ekf_finite_acc(bad, ekf_mac(x[2], k, nu)), v);
-        neg |= v < EKF_C(0);
+        neg |= sign_word(v);
     }
     { /* PHI */
         const ekf_scalar_t k = ekf_mul(b[3], inv_s);
         const ekf_scalar_t v = ekf_mac(p[9], ekf_neg(k), b[3]);
         bad = ekf_finite_acc(ekf_finite_acc(bad, ekf_mac(x[3], k, nu)), v);
-        neg |= v < EKF_C(0);
+        neg |= sign_word(v);
     }
     { /* THETA */
         const ekf_scalar_t k = ekf_mul(b[4], inv_s);
         const ekf_scalar_t v = ekf_mac(p[14], ekf_neg(k), b[4]);
         bad = ekf_finite_acc(ekf_finite_acc(bad, ekf_mac(x[4], k, nu)), v);
-        neg |= v < EKF_C(0);
+        neg |= sign_word(v);
     }
     { /* PSI */
         const ekf_scalar_t k = ekf_mul(b[5], inv_s);
         const ekf_scalar_t v = ekf_mac(p[20], ekf_neg(k), b[5]);
         bad = ekf_finite_acc(ekf_finite_acc(bad, ekf_mac(x[5], k, nu)), v);
-        neg |= v < EKF_C(0);
+        neg |= sign_word(v);
     }
     { /* PHID */
         const ekf_scalar_t k = ekf_mul(b[6], inv_s);
         const ekf_scalar_t v = ekf_mac(p[27], ekf_neg(k), b[6]);
         bad = ekf_finite_acc(ekf_finite_acc(bad, ekf_mac(x[6], k, nu)), v);
-        neg |= v < EKF_C(0);
+        neg |= sign_word(v);
     }
     { /* THETAD */
         const ekf_scalar_t k = ekf_mul(b[7], inv_s);
         const ekf_scalar_t v = ekf_mac(p[35], ekf_neg(k), b[7]);
         bad = ekf_finite_acc(ekf_finite_acc(bad, ekf_mac(x[7], k, nu)), v);
-        neg |= v < EKF_C(0);
+        neg |= sign_word(v);
     }
     { /* PSID */
         const ekf_scalar_t k = ekf_mul(b[8], inv_s);
         const ekf_scalar_t v = ekf_mac(p[44], ekf_neg(k), b[8]);
         bad = ekf_finite_acc(ekf_finite_acc(bad, ekf_mac(x[8], k, nu)), v);
-        neg |= v < EKF_C(0);
+        neg |= sign_word(v);
     }
-    if (!(bad == EKF_C(0)) || (neg && indefinite(p, b, inv_s))) {
+    if (!(bad == EKF_C(0)) || ((neg >> 31) != 0u && indefinite(p, b, inv_s))) {
         return EKF_ERR_NUMERIC;
     }
 #if ATT_COV_VFP_SP
@@ -587,6 +600,59 @@ static ekf_status_t update_common(att_cov_t *c, ekf_scalar_t x[ATT_N], const ekf
             : [k0] "t"(k0), [k1] "t"(k1), [k2] "t"(k2), [k3] "t"(k3), [k4] "t"(k4), [k5] "t"(k5), [k6] "t"(k6), [k7] "t"(k7), [k8] "t"(k8), [b0] "t"(b0), [b1] "t"(b1), [b2] "t"(b2), [b3] "t"(b3), [b4] "t"(b4), [b5] "t"(b5), [b6] "t"(b6), [b7] "t"(b7), [b8] "t"(b8), [fl] "t"(var_floor), [nu] "t"(nu), [x] "r"(x)
             : "s0", "s1", "s2", "s3", "s4", "s5", "s6", "s7", "s8", "cc", "memory");
     }
+#elif ATT_COV_SSE
+    {
+        const __m128 vs = _mm_set1_ps(inv_s), vnu = _mm_set1_ps(nu);
+        const __m128 k03 = _mm_mul_ps(_mm_loadu_ps(&b[0]), vs), k47 = _mm_mul_ps(_mm_loadu_ps(&b[4]), vs);
+        ekf_scalar_t k[ATT_N];
+        _mm_storeu_ps(&k[0], k03);
+        _mm_storeu_ps(&k[4], k47);
+        k[8] = ekf_mul(b[8], inv_s);
+        { const ekf_scalar_t bj = b[0];
+            { const ekf_scalar_t v = ekf_sub(p[0], ekf_mul(k[0], bj)); p[0] = (v < var_floor) ? var_floor : v; } }
+        { const ekf_scalar_t bj = b[1];
+            p[1] = ekf_sub(p[1], ekf_mul(k[0], bj));
+            { const ekf_scalar_t v = ekf_sub(p[2], ekf_mul(k[1], bj)); p[2] = (v < var_floor) ? var_floor : v; } }
+        { const ekf_scalar_t bj = b[2];
+            p[3] = ekf_sub(p[3], ekf_mul(k[0], bj));
+            p[4] = ekf_sub(p[4], ekf_mul(k[1], bj));
+            { const ekf_scalar_t v = ekf_sub(p[5], ekf_mul(k[2], bj)); p[5] = (v < var_floor) ? var_floor : v; } }
+        { const ekf_scalar_t bj = b[3];
+            p[6] = ekf_sub(p[6], ekf_mul(k[0], bj));
+            p[7] = ekf_sub(p[7], ekf_mul(k[1], bj));
+            p[8] = ekf_sub(p[8], ekf_mul(k[2], bj));
+            { const ekf_scalar_t v = ekf_sub(p[9], ekf_mul(k[3], bj)); p[9] = (v < var_floor) ? var_floor : v; } }
+        { const ekf_scalar_t bj = b[4];
+            const __m128 vb = _mm_set1_ps(bj);
+            _mm_storeu_ps(&p[10], _mm_sub_ps(_mm_loadu_ps(&p[10]), _mm_mul_ps(k03, vb)));
+            { const ekf_scalar_t v = ekf_sub(p[14], ekf_mul(k[4], bj)); p[14] = (v < var_floor) ? var_floor : v; } }
+        { const ekf_scalar_t bj = b[5];
+            const __m128 vb = _mm_set1_ps(bj);
+            _mm_storeu_ps(&p[15], _mm_sub_ps(_mm_loadu_ps(&p[15]), _mm_mul_ps(k03, vb)));
+            p[19] = ekf_sub(p[19], ekf_mul(k[4], bj));
+            { const ekf_scalar_t v = ekf_sub(p[20], ekf_mul(k[5], bj)); p[20] = (v < var_floor) ? var_floor : v; } }
+        { const ekf_scalar_t bj = b[6];
+            const __m128 vb = _mm_set1_ps(bj);
+            _mm_storeu_ps(&p[21], _mm_sub_ps(_mm_loadu_ps(&p[21]), _mm_mul_ps(k03, vb)));
+            p[25] = ekf_sub(p[25], ekf_mul(k[4], bj));
+            p[26] = ekf_sub(p[26], ekf_mul(k[5], bj));
+            { const ekf_scalar_t v = ekf_sub(p[27], ekf_mul(k[6], bj)); p[27] = (v < var_floor) ? var_floor : v; } }
+        { const ekf_scalar_t bj = b[7];
+            const __m128 vb = _mm_set1_ps(bj);
+            _mm_storeu_ps(&p[28], _mm_sub_ps(_mm_loadu_ps(&p[28]), _mm_mul_ps(k03, vb)));
+            p[32] = ekf_sub(p[32], ekf_mul(k[4], bj));
+            p[33] = ekf_sub(p[33], ekf_mul(k[5], bj));
+            p[34] = ekf_sub(p[34], ekf_mul(k[6], bj));
+            { const ekf_scalar_t v = ekf_sub(p[35], ekf_mul(k[7], bj)); p[35] = (v < var_floor) ? var_floor : v; } }
+        { const ekf_scalar_t bj = b[8];
+            const __m128 vb = _mm_set1_ps(bj);
+            _mm_storeu_ps(&p[36], _mm_sub_ps(_mm_loadu_ps(&p[36]), _mm_mul_ps(k03, vb)));
+            _mm_storeu_ps(&p[40], _mm_sub_ps(_mm_loadu_ps(&p[40]), _mm_mul_ps(k47, vb)));
+            { const ekf_scalar_t v = ekf_sub(p[44], ekf_mul(k[8], bj)); p[44] = (v < var_floor) ? var_floor : v; } }
+        _mm_storeu_ps(&x[0], _mm_add_ps(_mm_loadu_ps(&x[0]), _mm_mul_ps(k03, vnu)));
+        _mm_storeu_ps(&x[4], _mm_add_ps(_mm_loadu_ps(&x[4]), _mm_mul_ps(k47, vnu)));
+        x[8] = ekf_mac(x[8], k[8], nu);
+    }
 #else
     {
         const ekf_scalar_t k0 = ekf_mul(b[0], inv_s), b0 = b[0];
@@ -663,14 +729,20 @@ ekf_status_t att_cov_update_unit(att_cov_t *c, ekf_scalar_t x[ATT_N], int idx, e
 {
     const uint8_t *const row = att_cov_row[idx];
     ekf_scalar_t b[ATT_N];
-    int i;
     const ekf_status_t st = update_args(nu, r_var, info);
     if (st != EKF_OK) {
         return st;
     }
-    for (i = 0; i < ATT_N; ++i) {
-        b[i] = c->p[row[i]]; /* P H^T: column idx (times h = 1, exact) */
-    }
+    /* P H^T: column idx (times h = 1, exact), unrolled (a loop costs twice the loads) */
+    b[0] = c->p[row[0]];
+    b[1] = c->p[row[1]];
+    b[2] = c->p[row[2]];
+    b[3] = c->p[row[3]];
+    b[4] = c->p[row[4]];
+    b[5] = c->p[row[5]];
+    b[6] = c->p[row[6]];
+    b[7] = c->p[row[7]];
+    b[8] = c->p[row[8]];
     return update_common(c, x, b, b[idx], nu, r_var, gate, var_floor, info);
 }
 

@@ -32,6 +32,9 @@ enum { ATT_SENSOR_GYRO = 0, ATT_SENSOR_ACCEL = 1, ATT_SENSOR_MAG = 2 };
  * the one copy of the variables each call takes before its stages run. */
 void att_vars_copy(att_vars_t *dst, const att_vars_t *src);
 
+/* 1 if every state is finite (ekf_all_finite for n = ATT_N, unrolled: one multiply-add per
+ * state on an FPU, no loop). */
+int att_state_finite(const ekf_scalar_t x[ATT_N]);
 /* |vec|. */
 ekf_scalar_t att_norm3(const ekf_scalar_t vec[3]);
 /* ATT_FLAG_GIMBAL_LOCK from the pitch. */

@@ -52,6 +52,11 @@ void att_model_transition(const ekf_scalar_t x[ATT_N], const ekf_scalar_t w[3], 
 int att_model_normalise(ekf_scalar_t x[ATT_N])
 {
     int remapped = 0;
+    /* nearly always every angle is in range already: three comparisons (a NaN fails them
+     * and takes the general path below, which returns the same for an angle in range) */
+    if (ekf_abs(x[ATT_PHI]) < EKF_PI && ekf_abs(x[ATT_THETA]) <= EKF_HALF_PI && ekf_abs(x[ATT_PSI]) < EKF_PI) {
+        return 0;
+    }
     /* theta and theta + 2 pi are the same rotation (sin and cos unchanged) */
     x[ATT_THETA] = ekf_wrap_pi(x[ATT_THETA]);
     if (x[ATT_THETA] > EKF_HALF_PI || x[ATT_THETA] < ekf_neg(EKF_HALF_PI)) {

@@ -85,7 +85,7 @@ ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scala
     int i;
 
     att_model_transition(v->x, NULL, dt, s->gimbal_limit, xn, &tm, &tn);
-    if (!ekf_all_finite(xn, ATT_N)) {
+    if (!att_state_finite(xn)) {
         return EKF_ERR_NUMERIC;
     }
     /* F = F2 F1 (docs/derivation.md, "State Jacobian") */

@@ -17,22 +17,11 @@ void att_rest_reset(att_rest_t *r)
     r->at_rest = 0u;
 }
 
-static ekf_scalar_t sq_dist3(const ekf_scalar_t a[3], const ekf_scalar_t b[3])
-{
-    ekf_scalar_t s = EKF_C(0);
-    int i;
-    for (i = 0; i < 3; ++i) {
-        s = ekf_add(s, ekf_sq(ekf_sub(a[i], b[i])));
-    }
-    return s;
-}
-
 int att_rest_update(att_rest_t *r, const att_rest_settings_t *s, const ekf_scalar_t gyro[3],
                     const ekf_scalar_t accel[3], ekf_scalar_t dt)
 {
-    static const ekf_scalar_t zero[3] = {EKF_C(0), EKF_C(0), EKF_C(0)};
     const ekf_scalar_t g2 = ekf_sq(s->rest_gyro);
-    ekf_scalar_t k, w;
+    ekf_scalar_t k, w, lp2 = EKF_C(0), dg2 = EKF_C(0), da2 = EKF_C(0);
     int still, i;
 
     if (!(s->bias_tau > EKF_C(0))) {
@@ -53,9 +42,13 @@ int att_rest_update(att_rest_t *r, const att_rest_settings_t *s, const ekf_scala
     for (i = 0; i < 3; ++i) {
         r->gyro_lp[i] = ekf_flush_tiny(ekf_mac(r->gyro_lp[i], k, ekf_sub(gyro[i], r->gyro_lp[i])));
         r->acc_lp[i] = ekf_flush_tiny(ekf_mac(r->acc_lp[i], k, ekf_sub(accel[i], r->acc_lp[i])));
+        /* the squared norms of the low-passed rate and of both sensors' deviations from
+         * their low-pass */
+        lp2 = ekf_add(lp2, ekf_sq(r->gyro_lp[i]));
+        dg2 = ekf_add(dg2, ekf_sq(ekf_sub(gyro[i], r->gyro_lp[i])));
+        da2 = ekf_add(da2, ekf_sq(ekf_sub(accel[i], r->acc_lp[i])));
     }
-    still = sq_dist3(r->gyro_lp, zero) < g2 && sq_dist3(gyro, r->gyro_lp) < g2 &&
-            sq_dist3(accel, r->acc_lp) < ekf_sq(s->rest_accel);
+    still = lp2 < g2 && dg2 < g2 && da2 < ekf_sq(s->rest_accel);
     if (!still) {
         r->still_time = EKF_C(0);
         r->at_rest = 0u;

@@ -63,22 +63,100 @@ const att_settings_t att_default_settings = {
     .align_samples = 10u,
 };
 
-/* v^2 is finite and not zero in the build's scalar. */
-static int positive_square(ekf_scalar_t v)
+/* The bounds of the range table below: lo_bound[] and hi_bound[], by index. */
+static const ekf_scalar_t lo_bound[] = {
+    EKF_C(0), EKF_C(1e-30), EKF_C(1e-9), EKF_C(1e-6), EKF_C(1e-3), EKF_C(0.1), -EKF_HALF_PI, -EKF_PI,
+};
+enum { LO_0, LO_1E_30, LO_1E_9, LO_1E_6, LO_1E_3, LO_0_1, LO_M_HALF_PI, LO_M_PI };
+static const ekf_scalar_t hi_bound[] = {
+    EKF_C(1e6), EKF_C(1e-2), EKF_C(1), EKF_C(60), EKF_C(1.5697963267948966) /* pi/2 - 1 mrad */,
+    EKF_HALF_PI, EKF_PI, EKF_TWO_PI,
+};
+enum { HI_BIG, HI_1E_2, HI_1, HI_60, HI_GIMBAL, HI_HALF_PI, HI_PI, HI_TWO_PI };
+
+/* What the square of a setting must be in the build's scalar (see representable). */
+enum { SQ_ANY, SQ_FINITE, SQ_POSITIVE, SQ_ZERO_OR_POSITIVE };
+
+/* One setting in two bytes: its slot (offset in att_settings_t in scalars: every field
+ * before align_samples is a scalar, the rest settings too), and lo <= v <= hi (finite) and
+ * its square packed as lo | hi << 3 | square << 6. */
+typedef struct {
+    uint8_t slot, bounds;
+} setting_range_t;
+
+#define RANGE(field, lo, hi, sq) \
+    {(uint8_t)(offsetof(att_settings_t, field) / sizeof(ekf_scalar_t)), (uint8_t)((lo) | (hi) << 3 | (sq) << 6)}
+typedef char att_settings_scalar_slots[(offsetof(att_settings_t, rest) % sizeof(ekf_scalar_t) == 0 &&
+                                        offsetof(att_settings_t, gravity) % sizeof(ekf_scalar_t) == 0)
+                                           ? 1
+                                           : -1];
+
+/* Every scalar setting with fixed bounds; the bounds that depend on other settings are
+ * checked in att_settings_check. A table, not a chain of comparisons: a quarter of the
+ * flash. */
+static const setting_range_t ranges[] = {
+    RANGE(rate_walk, LO_1E_6, HI_BIG, SQ_POSITIVE),
+    RANGE(angle_walk, LO_0, HI_BIG, SQ_ZERO_OR_POSITIVE),
+    RANGE(euler_rate_rel, LO_1E_6, HI_1, SQ_ANY),
+    RANGE(gyro_noise, LO_1E_9, HI_BIG, SQ_POSITIVE),
+    RANGE(gyro_gate, LO_0, HI_BIG, SQ_FINITE),
+    RANGE(gyro_range, LO_1E_3, HI_BIG, SQ_ANY),
+    RANGE(gravity, LO_0_1, HI_BIG, SQ_FINITE),
+    RANGE(accel_noise, LO_1E_9, HI_BIG, SQ_POSITIVE),
+    RANGE(accel_band, LO_0, HI_BIG, SQ_ANY),
+    RANGE(accel_reject, LO_1E_6, HI_BIG, SQ_ANY),
+    RANGE(accel_adapt_tau, LO_0, HI_BIG, SQ_ANY),
+    RANGE(accel_lpf_tau, LO_0, HI_BIG, SQ_ANY),
+    RANGE(accel_gate, LO_0, HI_BIG, SQ_FINITE),
+    RANGE(mag_heading_noise, LO_1E_9, HI_PI, SQ_POSITIVE),
+    RANGE(mag_gate, LO_0, HI_BIG, SQ_FINITE),
+    RANGE(mag_norm_tol, LO_1E_6, HI_BIG, SQ_ANY),
+    RANGE(mag_dip_tol, LO_1E_6, HI_PI, SQ_ANY),
+    RANGE(mag_reset_time, LO_0, HI_BIG, SQ_ANY),
+    RANGE(mag_ref_norm, LO_0, HI_BIG, SQ_ANY),
+    RANGE(mag_ref_dip, LO_M_HALF_PI, HI_HALF_PI, SQ_ANY),
+    RANGE(mag_declination, LO_M_PI, HI_PI, SQ_ANY),
+    RANGE(mag_range, LO_1E_6, HI_BIG, SQ_ANY),
+    RANGE(gate_timeout, LO_0, HI_BIG, SQ_ANY),
+    RANGE(gimbal_limit, LO_0_1, HI_GIMBAL, SQ_ANY),
+    RANGE(dt_max, LO_1E_6, HI_60, SQ_ANY),
+    RANGE(var_floor, LO_1E_30, HI_1E_2, SQ_ANY),
+    RANGE(init_tilt_sigma, LO_1E_6, HI_PI, SQ_POSITIVE),
+    RANGE(init_heading_sigma, LO_1E_6, HI_TWO_PI, SQ_POSITIVE),
+    RANGE(init_rate_sigma, LO_1E_6, HI_BIG, SQ_POSITIVE),
+    RANGE(rest.rest_gyro, LO_1E_6, HI_BIG, SQ_POSITIVE),
+    RANGE(rest.rest_accel, LO_1E_6, HI_BIG, SQ_POSITIVE),
+    RANGE(rest.rest_time, LO_0, HI_BIG, SQ_ANY),
+    RANGE(rest.rest_tau, LO_0, HI_BIG, SQ_ANY),
+    RANGE(rest.bias_tau, LO_0, HI_BIG, SQ_ANY),
+};
+
+/* 1 if the table's setting is in its range and its square is what the table says. The
+ * variances derived from the settings must be representable in the build's scalar: no
+ * noise variance that rounds to zero (nothing would be fused, or a variance would be exact
+ * where it must not be), no square that saturates. Every setting in range passes in float
+ * and double; the fixed-point build refuses, for example, a gyro_noise of 1e-6 in Q29.34
+ * (its square is below one LSB). */
+static int setting_ok(const att_settings_t *s, const setting_range_t *r)
 {
+    const ekf_scalar_t v =
+        *(const ekf_scalar_t *)(const void *)((const char *)s + (size_t)r->slot * sizeof(ekf_scalar_t));
     const ekf_scalar_t q = ekf_sq(v);
-    return ekf_isfinite(q) && q > EKF_C(0);
+    if (!ekf_in_range(v, lo_bound[r->bounds & 7u], hi_bound[(r->bounds >> 3) & 7u])) {
+        return 0;
+    }
+    switch (r->bounds >> 6) {
+    case SQ_FINITE: return ekf_isfinite(q);
+    case SQ_POSITIVE: return ekf_isfinite(q) && q > EKF_C(0);
+    case SQ_ZERO_OR_POSITIVE: return v == EKF_C(0) || (ekf_isfinite(q) && q > EKF_C(0));
+    default: return 1;
+    }
 }
 
-static int finite_square(ekf_scalar_t v) { return ekf_isfinite(ekf_sq(v)); }
-
-/* The variances and sums derived from the settings are representable in the build's
- * scalar: no noise variance that rounds to zero (nothing would be fused, or a variance
- * would be exact where it must not be), no bound or sum that saturates. Every setting in
- * range passes in float and double; the fixed-point build refuses, for example, a
- * gyro_noise of 1e-6 in Q29.34 (its square is below one LSB), or a var_floor that rounds to
- * zero or is not above twice the covariance guard's absolute margin, which the guard could
- * then not hold (docs/fixed_point.md). */
+/* The bounds and sums derived from several settings are representable in the build's
+ * scalar (see setting_ok); the fixed-point build also refuses a var_floor that is not above
+ * twice the covariance guard's absolute margin, which the guard could then not hold
+ * (docs/fixed_point.md). */
 static int representable(const att_settings_t *s)
 {
 #if defined(ATT_COV_FX)
@@ -89,16 +167,9 @@ static int representable(const att_settings_t *s)
     const ekf_scalar_t sec_lim = ekf_div(EKF_C(1), ekf_cos(s->gimbal_limit));
     const ekf_scalar_t n = ekf_from_int((int32_t)s->align_samples);
     const ekf_scalar_t r_accel = ekf_div(ekf_sq(s->accel_noise), ekf_sq(s->gravity));
-    return s->var_floor > EKF_C(0) && positive_square(s->rate_walk) && positive_square(s->gyro_noise) &&
-           positive_square(s->accel_noise) && positive_square(s->mag_heading_noise) &&
-           ekf_isfinite(r_accel) && r_accel > EKF_C(0) &&
-           (s->angle_walk == EKF_C(0) || positive_square(s->angle_walk)) &&
-           positive_square(s->init_tilt_sigma) && positive_square(s->init_heading_sigma) &&
-           positive_square(s->init_rate_sigma) && positive_square(s->rest.rest_gyro) &&
-           positive_square(s->rest.rest_accel) && finite_square(s->gravity) &&
-           finite_square(s->gyro_gate) && finite_square(s->accel_gate) && finite_square(s->mag_gate) &&
+    return s->var_floor > EKF_C(0) && ekf_isfinite(r_accel) && r_accel > EKF_C(0) &&
            /* the Euler-rate variance bound (att_predict.c) and the norms of the sensor vectors */
-           finite_square(ekf_mul(s->gyro_range, ekf_add(EKF_C(1), ekf_mul(EKF_C(2), sec_lim)))) &&
+           ekf_isfinite(ekf_sq(ekf_mul(s->gyro_range, ekf_add(EKF_C(1), ekf_mul(EKF_C(2), sec_lim))))) &&
            ekf_isfinite(ekf_mul(EKF_C(3), ekf_sq(s->accel_range))) &&
            ekf_isfinite(ekf_mul(EKF_C(3), ekf_sq(s->mag_range))) &&
            /* the sums of the alignment average */
@@ -107,35 +178,19 @@ static int representable(const att_settings_t *s)
 
 ekf_status_t att_settings_check(const att_settings_t *s)
 {
-    const ekf_scalar_t big = EKF_C(1e6);
+    const ekf_scalar_t big = hi_bound[HI_BIG];
+    size_t i;
     if (s == NULL) {
         return EKF_ERR_NULL;
     }
-    if (!ekf_in_range(s->rate_walk, EKF_C(1e-6), big) || !ekf_in_range(s->angle_walk, EKF_C(0), big) ||
-        !ekf_in_range(s->euler_rate_rel, EKF_C(1e-6), EKF_C(1)) || !ekf_in_range(s->gyro_noise, EKF_C(1e-9), big) ||
-        !ekf_in_range(s->gyro_gate, EKF_C(0), big) || !ekf_in_range(s->gyro_range, EKF_C(1e-3), big) ||
-        !ekf_in_range(s->gravity, EKF_C(0.1), big) || !ekf_in_range(s->accel_noise, EKF_C(1e-9), big) ||
-        !ekf_in_range(s->accel_band, EKF_C(0), big) || !ekf_in_range(s->accel_reject, EKF_C(1e-6), big) ||
-        !ekf_in_range(s->accel_adapt_tau, EKF_C(0), big) || !ekf_in_range(s->accel_lpf_tau, EKF_C(0), big) ||
-        !ekf_in_range(s->accel_gate, EKF_C(0), big) || !ekf_in_range(s->accel_range, s->gravity, big) ||
-        !ekf_in_range(s->mag_heading_noise, EKF_C(1e-9), EKF_PI) || !ekf_in_range(s->mag_gate, EKF_C(0), big) ||
-        !ekf_in_range(s->mag_norm_tol, EKF_C(1e-6), big) || !ekf_in_range(s->mag_dip_tol, EKF_C(1e-6), EKF_PI) ||
-        !ekf_in_range(s->mag_reset_time, EKF_C(0), big) ||
-        !ekf_in_range(s->mag_ref_norm, EKF_C(0), big) ||
-        !ekf_in_range(s->mag_ref_dip, ekf_neg(EKF_HALF_PI), EKF_HALF_PI) ||
-        !ekf_in_range(s->mag_declination, ekf_neg(EKF_PI), EKF_PI) || !ekf_in_range(s->mag_range, EKF_C(1e-6), big) ||
-        !ekf_in_range(s->gate_timeout, EKF_C(0), big) ||
-        !ekf_in_range(s->gimbal_limit, EKF_C(0.1), EKF_C(1.5697963267948966)) || /* pi/2 - 1 mrad */
-        !ekf_in_range(s->dt_max, EKF_C(1e-6), EKF_C(60)) ||
+    for (i = 0; i < sizeof ranges / sizeof ranges[0]; ++i) {
+        if (!setting_ok(s, &ranges[i])) {
+            return EKF_ERR_SETTINGS;
+        }
+    }
+    if (!ekf_in_range(s->accel_range, s->gravity, big) ||
         !ekf_in_range(s->heading_var_max, ekf_max(EKF_C(1e-6), s->var_floor), big) || /* a cap below the floor */
-        !ekf_in_range(s->var_floor, EKF_C(1e-30), EKF_C(1e-2)) ||
-        !ekf_in_range(s->init_tilt_sigma, EKF_C(1e-6), EKF_PI) ||
-        !ekf_in_range(s->init_heading_sigma, EKF_C(1e-6), EKF_TWO_PI) ||
-        !ekf_in_range(s->init_rate_sigma, EKF_C(1e-6), big) || s->align_samples == 0u ||
-        !ekf_in_range(s->rest.rest_gyro, EKF_C(1e-6), big) || !ekf_in_range(s->rest.rest_accel, EKF_C(1e-6), big) ||
-        !ekf_in_range(s->rest.rest_time, EKF_C(0), big) || !ekf_in_range(s->rest.rest_tau, EKF_C(0), big) ||
-        !ekf_in_range(s->rest.bias_tau, EKF_C(0), big) || !ekf_in_range(s->rest.bias_max, EKF_C(0), s->gyro_range) ||
-        !representable(s)) {
+        !ekf_in_range(s->rest.bias_max, EKF_C(0), s->gyro_range) || s->align_samples == 0u || !representable(s)) {
         return EKF_ERR_SETTINGS;
     }
     return EKF_OK;
