@@ -11,6 +11,7 @@ const att_settings_t att_default_settings = {
     /* process model */
     .rate_walk = EKF_C(2.0),
     .angle_walk = EKF_C(0.001),
+    .angle_walk_rate = EKF_C(0.002), /* reported only (att_consider.h) */
     .euler_rate_rel = EKF_C(0.001),
     /* gyroscope */
     .gyro_noise = EKF_C(0.005),
@@ -24,6 +25,12 @@ const att_settings_t att_default_settings = {
         .bias_tau = EKF_C(10.0),
         .bias_max = EKF_C(0.035),
     },
+    .bias = {
+        .sigma_init = EKF_C(0.0087), /* 0.5 deg/s */
+        .walk = EKF_C(4.5e-5),       /* 0.026 deg/s after 100 s */
+        .mag_derate = EKF_C(30.0),
+        .motion = 2u,
+    },
     /* accelerometer */
     .gravity = EKF_C(9.81),
     .accel_noise = EKF_C(0.5),
@@ -31,8 +38,10 @@ const att_settings_t att_default_settings = {
     .accel_reject = EKF_C(50.0),
     .accel_adapt_tau = EKF_C(0.5),
     .accel_lpf_tau = EKF_C(1.0),
+    .accel_lpf_order = 2u,
     .accel_gate = EKF_C(10.0),
     .accel_range = EKF_C(160.0),
+    .accel_ref_sigma = EKF_C(0.0025), /* 0.14 deg; reported only */
     /* magnetometer */
     .mag_heading_noise = EKF_C(0.5),
     .mag_gate = EKF_C(3.0),
@@ -42,6 +51,7 @@ const att_settings_t att_default_settings = {
     .mag_ref_norm = EKF_C(0.0),
     .mag_ref_dip = EKF_C(0.0),
     .mag_declination = EKF_C(0.0),
+    .mag_ref_sigma = EKF_C(0.05), /* 2.9 deg; reported only */
     .mag_range = EKF_C(5000.0),
     /* robustness */
     .gate_timeout = EKF_C(1.0),
@@ -135,6 +145,11 @@ ekf_status_t att_settings_check(const att_settings_t *s)
         !ekf_in_range(s->rest.rest_gyro, EKF_C(1e-6), big) || !ekf_in_range(s->rest.rest_accel, EKF_C(1e-6), big) ||
         !ekf_in_range(s->rest.rest_time, EKF_C(0), big) || !ekf_in_range(s->rest.rest_tau, EKF_C(0), big) ||
         !ekf_in_range(s->rest.bias_tau, EKF_C(0), big) || !ekf_in_range(s->rest.bias_max, EKF_C(0), s->gyro_range) ||
+        s->accel_lpf_order < 1u || s->accel_lpf_order > 2u ||
+        !ekf_in_range(s->angle_walk_rate, EKF_C(0), EKF_C(1)) ||
+        !ekf_in_range(s->accel_ref_sigma, EKF_C(0), EKF_HALF_PI) || !ekf_in_range(s->mag_ref_sigma, EKF_C(0), EKF_PI) ||
+        !ekf_in_range(s->bias.sigma_init, EKF_C(0), s->gyro_range) || !ekf_in_range(s->bias.walk, EKF_C(0), EKF_C(1)) ||
+        !ekf_in_range(s->bias.mag_derate, EKF_C(1), EKF_C(1e4)) || s->bias.motion > 2u ||
         !representable(s)) {
         return EKF_ERR_SETTINGS;
     }
