@@ -10,6 +10,9 @@
  * where the updates would round a variance to zero (6e-6 deg/s). */
 #define BIAS_VAR_MIN EKF_C(1e-8)
 
+/* Places of Pb's entries (att_bias_t). */
+enum { PB_00 = 0, PB_11 = 1, PB_22 = 2, PB_01 = 3, PB_02 = 4, PB_12 = 5 };
+
 /* Largest |V| entry, s: an offset error's effect on an angle over almost three hours (an
  * unobserved heading), and a bound that keeps V finite where the transition amplifies it
  * (rates of tens of rad/s next to the gimbal limit). */
@@ -26,14 +29,15 @@ static ekf_scalar_t in_units(ekf_scalar_t v)
 
 void att_bias_reset(att_bias_t *bf, const att_bias_settings_t *s)
 {
+    const ekf_scalar_t v0 = ekf_max(ekf_sq(in_units(s->sigma_init)), BIAS_VAR_MIN);
     int i;
     for (i = 0; i < 9; ++i) {
-        bf->Pb[i] = EKF_C(0);
         bf->V[i] = EKF_C(0);
     }
     for (i = 0; i < 3; ++i) {
         bf->b[i] = EKF_C(0);
-        bf->Pb[4 * i] = ekf_max(ekf_sq(in_units(s->sigma_init)), BIAS_VAR_MIN);
+        bf->Pb[i] = v0;         /* variances */
+        bf->Pb[3 + i] = EKF_C(0); /* covariances */
     }
 }
 
@@ -63,83 +67,81 @@ void att_bias_predict(att_bias_t *bf, const att_bias_settings_t *s, const ekf_sc
      * Euler-rate columns are left out: the Euler rates follow the body rates within a step,
      * so their part is the same dependence once more at second order in dt. */
     const ekf_scalar_t q = ekf_mul(ekf_sq(in_units(s->walk)), dt);
-    ekf_scalar_t *V = bf->V;
+    const ekf_scalar_t m00 = d1[D1_PHI_PHI], m01 = d1[D1_PHI_THETA], m10 = d1[D1_THETA_PHI];
+    const ekf_scalar_t m20 = d1[D1_PSI_PHI], m21 = d1[D1_PSI_THETA];
+    const ekf_scalar_t w0[3] = {d1[D1_PHI_P], d1[D1_PHI_Q], d1[D1_PHI_R]};
+    const ekf_scalar_t w1[3] = {EKF_C(0), d1[D1_THETA_Q], d1[D1_THETA_R]};
+    const ekf_scalar_t w2[3] = {EKF_C(0), d1[D1_PSI_Q], d1[D1_PSI_R]};
+    ekf_scalar_t *const V = bf->V;
     int j;
     for (j = 0; j < 3; ++j) {
-        const ekf_scalar_t v0 = V[j], v1 = V[3 + j];
-        V[j] = ekf_mac(ekf_mac(v0, d1[D1_PHI_PHI], v0), d1[D1_PHI_THETA], v1);
-        V[3 + j] = ekf_mac(v1, d1[D1_THETA_PHI], v0);
-        V[6 + j] = ekf_mac(ekf_mac(V[6 + j], d1[D1_PSI_PHI], v0), d1[D1_PSI_THETA], v1);
-    }
-    V[0] = ekf_add(V[0], d1[D1_PHI_P]);
-    V[1] = ekf_add(V[1], d1[D1_PHI_Q]);
-    V[2] = ekf_add(V[2], d1[D1_PHI_R]);
-    V[4] = ekf_add(V[4], d1[D1_THETA_Q]);
-    V[5] = ekf_add(V[5], d1[D1_THETA_R]);
-    V[7] = ekf_add(V[7], d1[D1_PSI_Q]);
-    V[8] = ekf_add(V[8], d1[D1_PSI_R]);
-    for (j = 0; j < 9; ++j) {
-        V[j] = ekf_clamp(V[j], ekf_neg(BIAS_V_MAX), BIAS_V_MAX);
-    }
-    for (j = 0; j < 3; ++j) {
-        bf->Pb[4 * j] = ekf_add(bf->Pb[4 * j], q);
+        const ekf_scalar_t v0 = V[j], v1 = V[3 + j], v2 = V[6 + j];
+        V[j] = ekf_clamp(ekf_add(ekf_mac(ekf_mac(v0, m00, v0), m01, v1), w0[j]), ekf_neg(BIAS_V_MAX), BIAS_V_MAX);
+        V[3 + j] = ekf_clamp(ekf_add(ekf_mac(v1, m10, v0), w1[j]), ekf_neg(BIAS_V_MAX), BIAS_V_MAX);
+        V[6 + j] = ekf_clamp(ekf_add(ekf_mac(ekf_mac(v2, m20, v0), m21, v1), w2[j]), ekf_neg(BIAS_V_MAX), BIAS_V_MAX);
+        bf->Pb[j] = ekf_add(bf->Pb[j], q);
     }
 }
 
-void att_bias_sensitivity(const att_bias_t *bf, const ekf_scalar_t h[3], ekf_scalar_t g[3])
+int att_bias_update(att_bias_t *bf, int learn, const ekf_scalar_t h[3], const ekf_scalar_t pht[3], ekf_scalar_t nu,
+                    ekf_scalar_t s_var, ekf_scalar_t derate, ekf_scalar_t x_ang[3])
 {
-    int j;
-    for (j = 0; j < 3; ++j) {
-        g[j] = ekf_neg(ekf_mac(ekf_mac(ekf_mul(h[0], bf->V[j]), h[1], bf->V[3 + j]), h[2], bf->V[6 + j]));
-    }
-}
+    ekf_scalar_t *const V = bf->V, *const P = bf->Pb;
+    /* the measurement's sensitivity to the offset, g = -h V (V from before the update) */
+    const ekf_scalar_t g0 = ekf_neg(ekf_mac(ekf_mac(ekf_mul(h[0], V[0]), h[1], V[3]), h[2], V[6]));
+    const ekf_scalar_t g1 = ekf_neg(ekf_mac(ekf_mac(ekf_mul(h[0], V[1]), h[1], V[4]), h[2], V[7]));
+    const ekf_scalar_t g2 = ekf_neg(ekf_mac(ekf_mac(ekf_mul(h[0], V[2]), h[1], V[5]), h[2], V[8]));
+    const ekf_scalar_t inv_s = ekf_div(EKF_C(1), s_var);
+    ekf_scalar_t u0, u1, u2, p0, p1, p2, sb, e, d0, d1, d2;
+    int i;
 
-int att_bias_update(att_bias_t *bf, int learn, const ekf_scalar_t g[3], const ekf_scalar_t k[3], ekf_scalar_t nu,
-                    ekf_scalar_t s_var, ekf_scalar_t x_ang[3])
-{
-    ekf_scalar_t gu[3], pg[3], db[3], sb;
-    int i, j, learned = 0;
-
-    /* the EKF's update moves its error's sensitivity too: V <- (I - k h) V = V + k g^T */
+    /* the EKF's update moves its error's sensitivity too: V <- (I - k h) V = V + k g^T with
+     * the EKF's gain of the angles k = pht / S */
     for (i = 0; i < 3; ++i) {
-        for (j = 0; j < 3; ++j) {
-            bf->V[3 * i + j] = ekf_mac(bf->V[3 * i + j], k[i], g[j]);
-        }
+        const ekf_scalar_t ki = ekf_mul(pht[i], inv_s);
+        ekf_scalar_t *const row = &V[3 * i];
+        row[0] = ekf_mac(row[0], ki, g0);
+        row[1] = ekf_mac(row[1], ki, g1);
+        row[2] = ekf_mac(row[2], ki, g2);
     }
     if (!learn) {
         return 0;
     }
+    s_var = ekf_mul(s_var, derate);
     /* innovation nu = g b + (the EKF's own error and the sensor noise, variance s_var); with
-     * the offset in ATT_BIAS_UNIT its sensitivity is gu = g ATT_BIAS_UNIT */
-    for (i = 0; i < 3; ++i) {
-        gu[i] = ekf_mul(g[i], ATT_BIAS_UNIT);
-    }
-    for (i = 0; i < 3; ++i) {
-        pg[i] = ekf_mac(ekf_mac(ekf_mul(bf->Pb[3 * i], gu[0]), bf->Pb[3 * i + 1], gu[1]), bf->Pb[3 * i + 2], gu[2]);
-    }
-    sb = ekf_mac(ekf_mac(ekf_mac(s_var, gu[0], pg[0]), gu[1], pg[1]), gu[2], pg[2]);
+     * the offset in ATT_BIAS_UNIT its sensitivity is u = g ATT_BIAS_UNIT, and Pb u = p */
+    u0 = ekf_mul(g0, ATT_BIAS_UNIT);
+    u1 = ekf_mul(g1, ATT_BIAS_UNIT);
+    u2 = ekf_mul(g2, ATT_BIAS_UNIT);
+    p0 = ekf_mac(ekf_mac(ekf_mul(P[PB_00], u0), P[PB_01], u1), P[PB_02], u2);
+    p1 = ekf_mac(ekf_mac(ekf_mul(P[PB_01], u0), P[PB_11], u1), P[PB_12], u2);
+    p2 = ekf_mac(ekf_mac(ekf_mul(P[PB_02], u0), P[PB_12], u1), P[PB_22], u2);
+    sb = ekf_mac(ekf_mac(ekf_mac(s_var, u0, p0), u1, p1), u2, p2);
     if (!(sb > EKF_C(0)) || !(s_var > EKF_C(0)) || ekf_sq(nu) > ekf_mul(EKF_C(9), sb)) {
         return 0;
     }
     sb = ekf_div(EKF_C(1), sb);
-    for (i = 0; i < 3; ++i) {
-        const ekf_scalar_t ki = ekf_mul(pg[i], sb);
-        db[i] = ekf_mul(ekf_mul(ki, nu), ATT_BIAS_UNIT); /* rad/s */
-        for (j = i; j < 3; ++j) {
-            const ekf_scalar_t p = ekf_sub(bf->Pb[3 * i + j], ekf_mul(ki, pg[j]));
-            bf->Pb[3 * i + j] = p;
-            bf->Pb[3 * j + i] = p;
-        }
-        bf->Pb[4 * i] = ekf_max(bf->Pb[4 * i], BIAS_VAR_MIN);
-    }
+    e = ekf_mul(nu, sb); /* the offset moves by p e (in ATT_BIAS_UNIT) */
+    /* Pb <- Pb - p p^T / sb (the variances kept above BIAS_VAR_MIN) */
+    P[PB_00] = ekf_max(ekf_sub(P[PB_00], ekf_mul(ekf_mul(p0, sb), p0)), BIAS_VAR_MIN);
+    P[PB_11] = ekf_max(ekf_sub(P[PB_11], ekf_mul(ekf_mul(p1, sb), p1)), BIAS_VAR_MIN);
+    P[PB_22] = ekf_max(ekf_sub(P[PB_22], ekf_mul(ekf_mul(p2, sb), p2)), BIAS_VAR_MIN);
+    P[PB_01] = ekf_sub(P[PB_01], ekf_mul(ekf_mul(p0, sb), p1));
+    P[PB_02] = ekf_sub(P[PB_02], ekf_mul(ekf_mul(p0, sb), p2));
+    P[PB_12] = ekf_sub(P[PB_12], ekf_mul(ekf_mul(p1, sb), p2));
+    /* db, rad/s */
+    d0 = ekf_mul(ekf_mul(p0, e), ATT_BIAS_UNIT);
+    d1 = ekf_mul(ekf_mul(p1, e), ATT_BIAS_UNIT);
+    d2 = ekf_mul(ekf_mul(p2, e), ATT_BIAS_UNIT);
     /* the angles' error was V b: take the part now known out of them */
     for (i = 0; i < 3; ++i) {
-        x_ang[i] = ekf_sub(x_ang[i], ekf_mac(ekf_mac(ekf_mul(bf->V[3 * i], db[0]), bf->V[3 * i + 1], db[1]),
-                                             bf->V[3 * i + 2], db[2]));
-        bf->b[i] = ekf_add(bf->b[i], db[i]);
-        learned |= (db[i] != EKF_C(0));
+        const ekf_scalar_t *const row = &V[3 * i];
+        x_ang[i] = ekf_sub(x_ang[i], ekf_mac(ekf_mac(ekf_mul(row[0], d0), row[1], d1), row[2], d2));
     }
-    return learned;
+    bf->b[0] = ekf_add(bf->b[0], d0);
+    bf->b[1] = ekf_add(bf->b[1], d1);
+    bf->b[2] = ekf_add(bf->b[2], d2);
+    return (d0 != EKF_C(0)) || (d1 != EKF_C(0)) || (d2 != EKF_C(0));
 }
 
 void att_bias_rest(att_bias_t *bf, ekf_scalar_t w, ekf_scalar_t gyro_var)
@@ -149,16 +151,12 @@ void att_bias_rest(att_bias_t *bf, ekf_scalar_t w, ekf_scalar_t gyro_var)
      * that of the running average, (1 - w)^2 Pb + w^2 gyro_var */
     const ekf_scalar_t keep = ekf_sub(EKF_C(1), w);
     const ekf_scalar_t keep2 = ekf_sq(keep);
+    const ekf_scalar_t fresh = ekf_mul(ekf_sq(w), ekf_mul(gyro_var, ekf_sq(PER_UNIT)));
     int i;
     for (i = 0; i < 3; ++i) {
         bf->b[i] = ekf_mul(keep, bf->b[i]);
-    }
-    for (i = 0; i < 9; ++i) {
-        bf->Pb[i] = ekf_mul(keep2, bf->Pb[i]);
-    }
-    for (i = 0; i < 3; ++i) {
-        bf->Pb[4 * i] = ekf_max(ekf_mac(bf->Pb[4 * i], ekf_sq(w), ekf_mul(gyro_var, ekf_sq(PER_UNIT))),
-                                BIAS_VAR_MIN);
+        bf->Pb[i] = ekf_max(ekf_mac(fresh, keep2, bf->Pb[i]), BIAS_VAR_MIN);
+        bf->Pb[3 + i] = ekf_mul(keep2, bf->Pb[3 + i]);
     }
 }
 
@@ -182,6 +180,7 @@ void att_bias_cov(const att_bias_t *bf, ekf_scalar_t c[6])
 {
     static const uint8_t row[6] = {0, 1, 2, 0, 0, 1};
     static const uint8_t col[6] = {0, 1, 2, 1, 2, 2};
+    static const uint8_t at[9] = {PB_00, PB_01, PB_02, PB_01, PB_11, PB_12, PB_02, PB_12, PB_22};
     ekf_scalar_t vu[9], vp[9]; /* V ATT_BIAS_UNIT (rad per unit), vu Pb */
     int i, j;
     for (i = 0; i < 9; ++i) {
@@ -189,8 +188,8 @@ void att_bias_cov(const att_bias_t *bf, ekf_scalar_t c[6])
     }
     for (i = 0; i < 3; ++i) {
         for (j = 0; j < 3; ++j) {
-            vp[3 * i + j] = ekf_mac(ekf_mac(ekf_mul(vu[3 * i], bf->Pb[j]), vu[3 * i + 1], bf->Pb[3 + j]),
-                                    vu[3 * i + 2], bf->Pb[6 + j]);
+            vp[3 * i + j] = ekf_mac(ekf_mac(ekf_mul(vu[3 * i], bf->Pb[at[j]]), vu[3 * i + 1], bf->Pb[at[3 + j]]),
+                                    vu[3 * i + 2], bf->Pb[at[6 + j]]);
         }
     }
     for (i = 0; i < 6; ++i) {

@@ -10,7 +10,7 @@
  * The EKF runs as if the offset were exactly known. Beside it this module keeps
  *   V    (3x3, s): how the EKF's roll, pitch and yaw errors depend on the residual offset
  *        (d angles / d b), propagated with the EKF's own transition and gains;
- *   Pb   (3x3, in ATT_BIAS_UNIT^2): the covariance of the residual offset;
+ *   Pb   (3x3 symmetric, in ATT_BIAS_UNIT^2): the covariance of the residual offset;
  *   b    (3, rad/s): the estimate, added to the rest offset by the gyro update.
  * Each accelerometer or magnetometer scalar update with row h over the angles has the
  * sensitivity g = -h V to the offset: the offset is updated with the EKF's own innovation
@@ -51,7 +51,7 @@ typedef struct {
 
 typedef struct {
     ekf_scalar_t b[3];  /* rad/s, body frame: residual offset learned in motion */
-    ekf_scalar_t Pb[9]; /* ATT_BIAS_UNIT^2 ((mrad/s)^2), row-major, symmetric */
+    ekf_scalar_t Pb[6]; /* ATT_BIAS_UNIT^2 ((mrad/s)^2), packed: 00, 11, 22, 01, 02, 12 */
     ekf_scalar_t V[9];  /* s: d(phi, theta, psi) / d b, row-major (rows: angles) */
 } att_bias_t;
 
@@ -69,17 +69,15 @@ void att_bias_restart(att_bias_t *bf);
 void att_bias_predict(att_bias_t *bf, const att_bias_settings_t *s, const ekf_scalar_t d1[ATT_GEN_F1_NNZ],
                       ekf_scalar_t dt);
 
-/* Before an EKF scalar update with row h (h[3]: its entries at phi, theta, psi): returns in
- * g[3] the sensitivity of that measurement to the offset, g = -h V. */
-void att_bias_sensitivity(const att_bias_t *bf, const ekf_scalar_t h[3], ekf_scalar_t g[3]);
-
-/* After that update was fused: k[3] = the EKF gain of the angles (rad per unit of the
- * measurement), nu the innovation, s_var its variance S = h P h^T + R. Advances V; when
- * learn is set and nu is within 3 sigma of its variance with the offset's uncertainty
- * (S + g Pb g^T; a larger one is not the offset's doing), updates b and Pb and moves the
+/* After an EKF scalar update with row h over the angles (h[3]: its entries at phi, theta,
+ * psi) was fused: pht[3] = the angle rows of P h^T before the update, nu the innovation,
+ * s_var its variance S = h P h^T + R. Advances V with the update's gain pht / S; when learn
+ * is set, updates b and Pb from the innovation with the sensitivity g = -h V (V from before
+ * the update) and the variance S derate + g Pb g^T (derate >= 1 for innovations correlated
+ * across samples), unless nu is beyond 3 sigma of it (not the offset's doing), and moves the
  * angles x_ang[3] (phi, theta, psi) by -V db. Returns 1 if the offset changed. */
-int att_bias_update(att_bias_t *bf, int learn, const ekf_scalar_t g[3], const ekf_scalar_t k[3], ekf_scalar_t nu,
-                    ekf_scalar_t s_var, ekf_scalar_t x_ang[3]);
+int att_bias_update(att_bias_t *bf, int learn, const ekf_scalar_t h[3], const ekf_scalar_t pht[3], ekf_scalar_t nu,
+                    ekf_scalar_t s_var, ekf_scalar_t derate, ekf_scalar_t x_ang[3]);
 
 /* A sample at rest whose offset the rest detector averaged with weight w (0..1) of a gyro
  * with white noise gyro_var ((rad/s)^2): the residual decays with it. */

@@ -53,28 +53,12 @@ static void gate_result(att_vars_t *v, const att_settings_t *s, int sensor, int 
     }
 }
 
-/* ---- gyroscope offset in motion (att_bias.h) ---- */
+/* ---- the reported covariance's considered errors (att_consider.h) ---- */
 
 /* The fraction by which an update reduced a variance (its gain on that state's error). */
 static ekf_scalar_t reduction(ekf_scalar_t before, ekf_scalar_t after)
 {
     return (before > EKF_C(0)) ? ekf_sub(EKF_C(1), ekf_div(after, before)) : EKF_C(0);
-}
-
-/* A fused scalar update (innovation nu, what the update saw in info; g and pht = the
- * angle rows of P h^T from before it) advances the angles' sensitivity to the gyroscope
- * offset and, if learn, updates the offset in motion with the innovation's variance times
- * derate. */
-static void bias_observe(att_vars_t *v, int learn, const ekf_scalar_t g[3], const ekf_scalar_t pht[3],
-                         ekf_scalar_t nu, ekf_scalar_t derate, const ekf_innov_t *info)
-{
-    const ekf_scalar_t inv_s = ekf_div(EKF_C(1), info->variance);
-    ekf_scalar_t k[3];
-    int i;
-    for (i = 0; i < 3; ++i) {
-        k[i] = ekf_mul(pht[i], inv_s); /* the EKF's gain of the angles */
-    }
-    (void)att_bias_update(&v->bias, learn, g, k, nu, ekf_mul(info->variance, derate), &v->x[ATT_PHI]);
 }
 
 /* ---- gyroscope ---- */
@@ -267,11 +251,10 @@ ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_s
     var0[1] = att_cov_var(&v->cov, ATT_THETA);
     for (i = 0; i < 3; ++i) {
         const ekf_scalar_t h3[3] = {hj[2 * i], hj[2 * i + 1], EKF_C(0)};
-        ekf_scalar_t g[3], pht[3];
+        ekf_scalar_t pht[3];
         ekf_scalar_t nu = ekf_sub(ekf_div(a[i], norm), h[i]);
         nu = ekf_sub(nu, ekf_mul(hj[2 * i], ekf_sub(v->x[ATT_PHI], phi0)));
         nu = ekf_sub(nu, ekf_mul(hj[2 * i + 1], ekf_sub(v->x[ATT_THETA], theta0)));
-        att_bias_sensitivity(&v->bias, h3, g);
         {
             /* the angle rows of P h^T before the update: its gain times S */
             const ekf_scalar_t p_ff = att_cov_var(&v->cov, ATT_PHI), p_tt = att_cov_var(&v->cov, ATT_THETA);
@@ -285,8 +268,8 @@ ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_s
         if (st == EKF_OK) {
             /* beyond the gimbal limit the kinematics are clamped: the innovations then carry
              * the clamp's error, not the offset's */
-            bias_observe(v, s->bias.motion >= 1u && (v->flags & ATT_FLAG_GIMBAL_LOCK) == 0u, g, pht, nu, EKF_C(1),
-                         &info);
+            (void)att_bias_update(&v->bias, s->bias.motion >= 1u && (v->flags & ATT_FLAG_GIMBAL_LOCK) == 0u, h3, pht,
+                                  nu, info.variance, EKF_C(1), &v->x[ATT_PHI]);
         }
         v->diag.accel_ratio[i] = info.test_ratio;
         bypass_failed |= (st == EKF_OK) && fails_gate(&info, s->accel_gate);
@@ -421,14 +404,13 @@ ekf_status_t att_stage_mag(att_vars_t *v, const att_settings_t *s, const ekf_sca
         const ekf_scalar_t var0 = att_cov_var(&v->cov, ATT_PSI);
         const ekf_scalar_t pht[3] = {att_cov_get(&v->cov, ATT_PHI, ATT_PSI), att_cov_get(&v->cov, ATT_THETA, ATT_PSI),
                                      var0};
-        ekf_scalar_t g[3];
-        att_bias_sensitivity(&v->bias, h3, g);
         st = att_cov_update_unit(&v->cov, v->x, ATT_PSI, nu, r_var, s->mag_gate, s->var_floor, &info);
         if (st == EKF_OK) {
             /* the field's errors depend on the orientation and disturbed fields pass the
              * tests: taken at face value they would teach the vertical offset the field's
              * errors (docs/derivation.md, "Gyroscope offset in motion"), hence mag_derate */
-            bias_observe(v, s->bias.motion >= 2u, g, pht, nu, s->bias.mag_derate, &info);
+            (void)att_bias_update(&v->bias, s->bias.motion >= 2u, h3, pht, nu, info.variance, s->bias.mag_derate,
+                                  &v->x[ATT_PHI]);
             att_consider_heading(&v->consider, reduction(var0, att_cov_var(&v->cov, ATT_PSI)));
         }
     }
