@@ -121,7 +121,7 @@ def _pool_map(fn, tasks, jobs, progress):
     out = []
     if jobs > 1 and len(tasks) > 1:
         import multiprocessing as mp
-        with mp.get_context("fork").Pool(jobs) as pool:
+        with mp.get_context("fork").Pool(jobs, initializer=B._worker_init) as pool:
             for r in pool.imap(fn, tasks, chunksize=1):
                 out.append(r)
                 if progress:
