@@ -10,7 +10,7 @@ Accuracy settings. A small grid over the settings that set the filter's time con
 (DEFAULT_GRID). Every grid point runs once on every trial, 9D and 6D (6D runs are shared by
 points that differ only in magnetometer settings). For each fold the point with the lowest
 training objective is chosen: the mean over the other folds' trials of (9D total RMSE + 6D
-total RMSE) / 2, averaged over the point and its grid neighbours (a point on a plateau beats
+total RMSE) / 2, averaged over the point and its neighbours along each axis (a point on a plateau beats
 a sharp optimum of the same depth). The left-out trials are scored with that point: the
 cross-validated figure of each trial comes from settings chosen without it.
 
@@ -44,11 +44,13 @@ FOLD_ORDER = ("rotation", "translation", "combined", "tapping", "vibration", "st
 # name, grid values. accel_noise: weight of the accelerometer (the tilt correction's time
 # constant); accel_lpf_tau: the low-pass's time constant (linear-acceleration averaging
 # against the lag of the rate compensation); mag_heading_noise: weight of the magnetometer
-# (the heading correction's time constant against averaging of field errors).
+# (the heading correction's time constant against averaging of field errors); bias.walk: how
+# fast the offset learned in motion may change (att_bias.h).
 DEFAULT_GRID: List[Tuple[str, List[float]]] = [
-    ("accel_noise", [0.2, 0.3, 0.45, 0.7]),
-    ("accel_lpf_tau", [0.5, 0.7, 1.0, 1.4]),
-    ("mag_heading_noise", [0.25, 0.35, 0.5, 0.7]),
+    ("accel_noise", [0.3, 0.5, 0.7]),
+    ("accel_lpf_tau", [0.7, 1.0, 1.4]),
+    ("mag_heading_noise", [0.35, 0.5, 0.7]),
+    ("bias.walk", [2e-5, 3e-5, 4.5e-5, 6.7e-5]),
 ]
 MAG_ONLY = ("mag_heading_noise", "mag_gate", "mag_norm_tol", "mag_dip_tol", "mag_reset_time")
 
@@ -144,11 +146,18 @@ def objective(scores9: Dict[str, Dict[str, float]], scores6: Dict[str, Dict[str,
 
 
 def smoothed(values: Dict[Tuple[int, ...], float], shape: Tuple[int, ...]) -> Dict[Tuple[int, ...], float]:
-    """Each grid point's value averaged with its neighbours (index +-1 on every axis)."""
+    """Each grid point's value averaged with its neighbours along each axis (index +-1 on one
+    axis at a time, the points that exist). Not the whole box of +-1 on every axis: in four
+    dimensions that averages up to 81 points, and a corner (16 of them, all inward) is then
+    favoured over any interior point."""
     out = {}
     for idx in values:
-        nb = [tuple(i + o for i, o in zip(idx, off)) for off in itertools.product((-1, 0, 1), repeat=len(shape))]
-        nb = [n for n in nb if all(0 <= n[a] < shape[a] for a in range(len(shape)))]
+        nb = [idx]
+        for a in range(len(shape)):
+            for o in (-1, 1):
+                n = tuple(i + (o if b == a else 0) for b, i in enumerate(idx))
+                if 0 <= n[a] < shape[a]:
+                    nb.append(n)
         out[idx] = float(np.mean([values[n] for n in nb]))
     return out
 
@@ -275,6 +284,9 @@ def run_cv(paths: List[str], data_dir: str, grid: List[Tuple[str, List[float]]],
         "coverage_cv": {f"{t}|{'6d' if six else '9d'}": v for (t, six), v in cv_cov.items()},
         "coverage_in": {f"{t}|{'6d' if six else '9d'}": v for (t, six), v in in_cov.items()},
         "sensitivity": sens,
+        "points": [{"settings": point_settings(idx), "objective_all": j_all[idx], "smoothed_all": sm_all[idx],
+                    "total_9d": {t: s9[idx][t]["total"] for t in trials},
+                    "total_6d": {t: s6[idx][t]["total"] for t in trials}} for idx in points],
     }
 
 

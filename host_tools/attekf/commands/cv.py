@@ -38,7 +38,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="a setting held fixed for every run (repeatable)")
     p.add_argument("--grid", action="append", default=[], metavar="NAME=V1,V2,...",
                    help="a tuned setting and its grid values (repeatable; replaces the default grid: "
-                        "accel_noise, accel_lpf_tau, mag_heading_noise)")
+                        "accel_noise, accel_lpf_tau, mag_heading_noise, bias.walk)")
     p.add_argument("--no-vqf", action="store_true", help="do not run VQF for the comparison columns")
     p.add_argument("--out", metavar="DIR", help="write cv.txt and cv.json into DIR")
 
