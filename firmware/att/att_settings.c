@@ -11,7 +11,7 @@ const att_settings_t att_default_settings = {
     /* process model */
     .rate_walk = EKF_C(2.0),
     .angle_walk = EKF_C(0.001),
-    .angle_walk_rate = EKF_C(0.002), /* reported only (att_consider.h) */
+    .angle_walk_rate = EKF_C(0.0015), /* reported only (att_consider.h); attekf cv */
     .euler_rate_rel = EKF_C(0.001),
     /* gyroscope */
     .gyro_noise = EKF_C(0.005),
@@ -27,23 +27,23 @@ const att_settings_t att_default_settings = {
     },
     .bias = {
         .sigma_init = EKF_C(0.0087), /* 0.5 deg/s */
-        .walk = EKF_C(4.5e-5),       /* 0.026 deg/s after 100 s */
+        .walk = EKF_C(6.7e-5),       /* 0.038 deg/s after 100 s; attekf cv */
         .mag_derate = EKF_C(30.0),
         .motion = 2u,
     },
     /* accelerometer */
     .gravity = EKF_C(9.81),
-    .accel_noise = EKF_C(0.5),
+    .accel_noise = EKF_C(0.7), /* attekf cv */
     .accel_band = EKF_C(0.0),
     .accel_reject = EKF_C(50.0),
     .accel_adapt_tau = EKF_C(0.5),
-    .accel_lpf_tau = EKF_C(1.0),
+    .accel_lpf_tau = EKF_C(1.0), /* attekf cv */
     .accel_lpf_order = 2u,
     .accel_gate = EKF_C(10.0),
     .accel_range = EKF_C(160.0),
-    .accel_ref_sigma = EKF_C(0.0025), /* 0.14 deg; reported only */
+    .accel_ref_sigma = EKF_C(0.005), /* 0.29 deg; reported only; attekf cv */
     /* magnetometer */
-    .mag_heading_noise = EKF_C(0.5),
+    .mag_heading_noise = EKF_C(0.5), /* attekf cv */
     .mag_gate = EKF_C(3.0),
     .mag_norm_tol = EKF_C(0.15),
     .mag_dip_tol = EKF_C(0.17),
@@ -51,7 +51,7 @@ const att_settings_t att_default_settings = {
     .mag_ref_norm = EKF_C(0.0),
     .mag_ref_dip = EKF_C(0.0),
     .mag_declination = EKF_C(0.0),
-    .mag_ref_sigma = EKF_C(0.05), /* 2.9 deg; reported only */
+    .mag_ref_sigma = EKF_C(0.05), /* 2.9 deg; reported only; attekf cv */
     .mag_range = EKF_C(5000.0),
     /* robustness */
     .gate_timeout = EKF_C(1.0),
