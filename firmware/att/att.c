@@ -26,6 +26,8 @@ ekf_status_t att_init(att_ekf_t *f, const att_settings_t *settings)
     *f = zero;
     f->settings = *settings;
     att_rest_reset(&f->vars.rest);
+    att_bias_reset(&f->vars.bias, &settings->bias);
+    att_consider_reset(&f->vars.consider);
     return EKF_OK;
 }
 
@@ -154,6 +156,7 @@ int att_normalise(att_vars_t *v)
         /* theta -> +-pi - theta and thetad -> -thetad: their rows and columns change sign */
         att_cov_negate_state(&v->cov, ATT_THETA);
         att_cov_negate_state(&v->cov, ATT_THETAD);
+        att_bias_remap(&v->bias);
         return 1;
     }
     return 0;
@@ -377,6 +380,9 @@ ekf_status_t att_step(att_ekf_t *f, const att_sample_t *sample, att_step_report_
         check_dt(s, sample->dt) == EKF_OK &&
         att_rest_update(&w->rest, &s->rest, sample->gyro, sample->accel, sample->dt)) {
         w->flags |= ATT_FLAG_AT_REST;
+        /* the rest offset averaged this sample with weight dt / bias_time (att_rest.c): the
+         * offset learned in motion hands over to it at that rate */
+        att_bias_rest(&w->bias, ekf_div(sample->dt, w->rest.bias_time), ekf_sq(s->gyro_noise));
     }
     if ((w->flags & ATT_FLAG_ALIGNED) == 0u) {
         /* averaging, then the alignment and the gyro of its last sample */
@@ -446,9 +452,11 @@ void att_get_body_rates(const att_ekf_t *f, ekf_scalar_t w[3])
 
 void att_get_gyro_bias(const att_ekf_t *f, ekf_scalar_t b[3])
 {
-    b[0] = f->vars.rest.bias[0];
-    b[1] = f->vars.rest.bias[1];
-    b[2] = f->vars.rest.bias[2];
+    const ekf_scalar_t m = f->settings.rest.bias_max;
+    int i;
+    for (i = 0; i < 3; ++i) {
+        b[i] = ekf_clamp(ekf_add(f->vars.rest.bias[i], f->vars.bias.b[i]), ekf_neg(m), m);
+    }
 }
 
 void att_get_euler_rates(const att_ekf_t *f, ekf_scalar_t e[3])
@@ -463,12 +471,41 @@ void att_get_quaternion(const att_ekf_t *f, ekf_scalar_t q[4])
     att_model_euler_to_quat(f->vars.x[ATT_PHI], f->vars.x[ATT_THETA], f->vars.x[ATT_PSI], q);
 }
 
+void att_get_angle_covariance(const att_ekf_t *f, ekf_scalar_t c[6])
+{
+    const att_settings_t *s = &f->settings;
+    const att_vars_t *v = &f->vars;
+    c[0] = att_cov_var(&v->cov, ATT_PHI);
+    c[1] = att_cov_var(&v->cov, ATT_THETA);
+    c[2] = att_cov_var(&v->cov, ATT_PSI);
+    c[3] = att_cov_get(&v->cov, ATT_PHI, ATT_THETA);
+    c[4] = att_cov_get(&v->cov, ATT_PHI, ATT_PSI);
+    c[5] = att_cov_get(&v->cov, ATT_THETA, ATT_PSI);
+    if ((v->flags & ATT_FLAG_ALIGNED) == 0u) {
+        return;
+    }
+    att_bias_cov(&v->bias, c);
+    att_consider_add(&v->consider, c);
+    c[0] = ekf_add(c[0], ekf_sq(s->accel_ref_sigma));
+    c[1] = ekf_add(c[1], ekf_sq(s->accel_ref_sigma));
+    if ((v->flags & ATT_FLAG_HEADING_LIMITED) == 0u && v->mag_ref_norm > EKF_C(0)) {
+        c[2] = ekf_add(c[2], ekf_sq(s->mag_ref_sigma));
+    }
+    /* an unobserved heading is at most uniform: never report more than the cap */
+    c[2] = ekf_min(c[2], s->heading_var_max);
+}
+
 void att_get_variances(const att_ekf_t *f, ekf_scalar_t var[ATT_N])
 {
+    ekf_scalar_t c[6];
     int i;
     for (i = 0; i < ATT_N; ++i) {
         var[i] = att_cov_var(&f->vars.cov, i);
     }
+    att_get_angle_covariance(f, c);
+    var[ATT_PHI] = c[0];
+    var[ATT_THETA] = c[1];
+    var[ATT_PSI] = c[2];
 }
 
 void att_get_covariance(const att_ekf_t *f, ekf_scalar_t P[ATT_N * ATT_N]) { att_cov_to_full(&f->vars.cov, P); }

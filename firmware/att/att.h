@@ -36,6 +36,8 @@
 #include <stdint.h>
 
 #include "att_cov.h"
+#include "att_bias.h"
+#include "att_consider.h"
 #include "att_defs.h"
 #include "att_rest.h"
 #include "ekf.h"
@@ -49,6 +51,12 @@ typedef struct {
     /* process model */
     ekf_scalar_t rate_walk;       /* body-rate random walk, rad/s/sqrt(s): Var(dw) = rate_walk^2 dt */
     ekf_scalar_t angle_walk;      /* extra angle random walk, rad/sqrt(s) (model error) */
+    ekf_scalar_t angle_walk_rate; /* angle random walk per rad/s of body rate, sqrt(s): the
+                                     gyroscope's scale-factor and misalignment errors, which
+                                     grow with the rate and integrate into the angles. Not
+                                     weighted by the filter (it would open the heading to
+                                     disturbed fields in every turn): carried in the reported
+                                     covariance (att_consider.h) */
     ekf_scalar_t euler_rate_rel;  /* independent error per step of each Euler-rate state and of
                                      each angle's increment, as a fraction of its variance
                                      (dimensionless, > 0): the model error of the discrete
@@ -59,6 +67,7 @@ typedef struct {
     ekf_scalar_t gyro_gate;  /* innovation gate, sigmas; 0 = off */
     ekf_scalar_t gyro_range; /* |component| above this is EKF_ERR_RANGE, rad/s */
     att_rest_settings_t rest; /* rest detection and gyroscope offset estimation (att_rest.h) */
+    att_bias_settings_t bias; /* gyroscope offset in motion and its uncertainty (att_bias.h) */
     /* accelerometer */
     ekf_scalar_t gravity;       /* magnitude of gravity, m/s^2 */
     ekf_scalar_t accel_noise;   /* white noise incl. unmodelled motion, 1 sigma per axis, m/s^2 */
@@ -73,9 +82,15 @@ typedef struct {
     ekf_scalar_t accel_lpf_tau;   /* s: the accelerometer is low-passed in a frame that turns
                                      with the body rates (an earth-fixed frame), so that
                                      linear acceleration averages out and gravity does not
-                                     lag ("Linear acceleration" in docs/derivation.md); 0 = off */
+                                     lag ("Linear acceleration" in docs/derivation.md); 0 = off.
+                                     Time constant of each stage. */
+    uint16_t accel_lpf_order;     /* stages of that low-pass, 1 or 2 (two: 40 dB/decade above
+                                     1 / (2 pi accel_lpf_tau); delay 2 accel_lpf_tau at DC) */
     ekf_scalar_t accel_gate;    /* innovation gate, sigmas; 0 = off */
     ekf_scalar_t accel_range;   /* |component| above this is EKF_ERR_RANGE, m/s^2 */
+    ekf_scalar_t accel_ref_sigma; /* rad: error of the accelerometer's gravity direction that
+                                     averaging cannot remove (calibration, mounting), added to
+                                     the reported roll and pitch variances */
     /* magnetometer (heading, tilt-compensated) */
     ekf_scalar_t mag_heading_noise; /* 1 sigma of the magnetic heading, rad */
     ekf_scalar_t mag_gate;          /* innovation gate, sigmas; 0 = off */
@@ -87,6 +102,10 @@ typedef struct {
     ekf_scalar_t mag_ref_norm;      /* reference field norm (mag units); 0 = learn at alignment */
     ekf_scalar_t mag_ref_dip;       /* reference dip, rad, positive down; used if mag_ref_norm > 0 */
     ekf_scalar_t mag_declination;   /* magnetic declination, rad, east positive */
+    ekf_scalar_t mag_ref_sigma;     /* rad: error of the magnetic reference direction that
+                                       averaging cannot remove (local deviation of the field,
+                                       declination, calibration), added to the reported heading
+                                       variance while the heading is magnetometer-referenced */
     ekf_scalar_t mag_range;         /* |component| above this is EKF_ERR_RANGE (mag units) */
     /* robustness */
     ekf_scalar_t gate_timeout;  /* s of continuous gating of the gyroscope or the
@@ -164,12 +183,15 @@ typedef struct {
     uint16_t align_mag_count;
     ekf_scalar_t gated_time[3]; /* s of continuous gating: gyro, accel, mag */
     ekf_scalar_t accel_dev_var; /* running mean of ( |a| - g )^2, (m/s^2)^2 */
-    ekf_scalar_t accel_lp[3];   /* low-passed specific force, body frame, m/s^2 */
+    ekf_scalar_t accel_lp[3];   /* low-passed specific force, body frame, m/s^2 (last stage) */
+    ekf_scalar_t accel_lp1[3];  /* its first stage when accel_lpf_order is 2, m/s^2 */
     uint8_t accel_lp_valid;     /* accel_lp holds a sample */
     uint8_t tilt_ok;            /* last accelerometer update: fused, no linear acceleration,
                                    every innovation within 3 sigma (heading resets need it) */
     ekf_scalar_t last_dt;       /* s, of the last prediction (time base of the running means) */
     att_rest_t rest;            /* rest detector and gyroscope offset */
+    att_bias_t bias;            /* gyroscope offset in motion (residual of the rest offset) */
+    att_consider_t consider;    /* error sources carried in the reported covariance only */
     uint32_t flags;
     att_diag_t diag;
 } att_vars_t;
@@ -252,10 +274,20 @@ ekf_status_t att_update_mag(att_ekf_t *f, const ekf_scalar_t mag[3]);
 void att_get_euler(const att_ekf_t *f, ekf_scalar_t euler[3]);       /* phi, theta, psi, rad */
 void att_get_body_rates(const att_ekf_t *f, ekf_scalar_t w[3]);      /* p, q, r, rad/s */
 void att_get_euler_rates(const att_ekf_t *f, ekf_scalar_t e[3]);     /* rad/s */
-/* Gyroscope offset learned at rest (rad/s, body frame), subtracted from every gyro sample. */
+/* Gyroscope offset (rad/s, body frame) subtracted from every gyro sample: learned at rest,
+ * plus what the bias filter learned in motion (att_bias.h). */
 void att_get_gyro_bias(const att_ekf_t *f, ekf_scalar_t b[3]);
 void att_get_quaternion(const att_ekf_t *f, ekf_scalar_t q[4]);      /* w, x, y, z: body to ENU */
-void att_get_variances(const att_ekf_t *f, ekf_scalar_t var[ATT_N]); /* diagonal of P */
+/* Variances of the state errors: the diagonal of P, and for the angles that of the
+ * attitude covariance of att_get_angle_covariance (P plus the gyroscope offset's, the
+ * considered error sources' and the sensors' reference uncertainty). */
+void att_get_variances(const att_ekf_t *f, ekf_scalar_t var[ATT_N]);
+/* Covariance of the roll, pitch and yaw errors (rad^2), packed (phi phi, theta theta,
+ * psi psi, phi theta, phi psi, theta psi): P's angle block + V Pb V^T (the gyroscope
+ * offset's uncertainty, att_bias.h) + the considered errors (att_consider.h) +
+ * accel_ref_sigma^2 on roll and pitch + mag_ref_sigma^2 on yaw while the heading is
+ * magnetometer-referenced (docs/derivation.md, "Reported covariance"). */
+void att_get_angle_covariance(const att_ekf_t *f, ekf_scalar_t c[6]);
 void att_get_covariance(const att_ekf_t *f, ekf_scalar_t P[ATT_N * ATT_N]); /* all of P, row-major */
 const ekf_scalar_t *att_state(const att_ekf_t *f);                   /* x[ATT_N] */
 uint32_t att_flags(const att_ekf_t *f);

@@ -55,6 +55,9 @@ ekf_status_t att_stage_align(att_vars_t *v, const att_settings_t *s, const ekf_s
     /* atan2 can return +pi itself (a = (0, +0, -g), upside down): into [-pi, pi) like after
      * every other stage */
     (void)att_normalise(v);
+    /* the angles are measured afresh: their errors no longer depend on the past offset */
+    att_bias_restart(&v->bias);
+    att_consider_reset(&v->consider);
 
     if (s->mag_ref_norm > EKF_C(0)) {
         att_set_mag_reference(v, s->mag_ref_norm, s->mag_ref_dip);
@@ -69,6 +72,7 @@ ekf_status_t att_stage_align(att_vars_t *v, const att_settings_t *s, const ekf_s
     /* the accelerometer low-pass starts from the alignment's (averaged) specific force */
     for (i = 0; i < 3; ++i) {
         v->accel_lp[i] = accel[i];
+        v->accel_lp1[i] = accel[i];
     }
     v->accel_lp_valid = 1u;
     v->tilt_ok = 1u; /* the tilt is the accelerometer's */

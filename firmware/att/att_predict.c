@@ -45,15 +45,29 @@ static void cross(const ekf_scalar_t a[3], const ekf_scalar_t b[3], ekf_scalar_t
     out[2] = ekf_sub(ekf_mul(a[0], b[1]), ekf_mul(a[1], b[0]));
 }
 
-/* The accelerometer low-pass (accel_lpf_tau) lives in a frame that turns with the body:
+/* vec <- vec - th x vec + (th x (th x vec)) / 2: an earth-fixed vector seen from a body
+ * that turned by th (rad) in one step, second order in th = w dt; first order loses gravity
+ * at fast rotation (|th| ~ 0.05 rad per sample) */
+static void turn_vector(const ekf_scalar_t th[3], ekf_scalar_t vec[3])
+{
+    ekf_scalar_t c1[3], c2[3];
+    int i;
+    cross(th, vec, c1);
+    cross(th, c1, c2);
+    for (i = 0; i < 3; ++i) {
+        vec[i] = ekf_mac(ekf_sub(vec[i], c1[i]), EKF_C(0.5), c2[i]);
+    }
+}
+
+/* The accelerometer low-pass (accel_lpf_tau, accel_lpf_order stages) lives in a frame that turns with the body:
  * every prediction carries the filtered specific force into the new body frame with the
  * body rates (dv/dt = -w x v for a vector fixed in the earth frame), every accelerometer
  * sample is blended in (att_update.c). Gravity is earth-fixed, so it passes without lag;
  * linear acceleration that averages to zero in the earth frame (shaking, vibration) is
  * filtered out (docs/derivation.md, "Linear acceleration"). */
-static void accel_lp_turn(att_vars_t *v, ekf_scalar_t dt)
+static void accel_lp_turn(att_vars_t *v, const att_settings_t *s, ekf_scalar_t dt)
 {
-    ekf_scalar_t th[3], c1[3], c2[3];
+    ekf_scalar_t th[3];
     int i;
     if (!v->accel_lp_valid) {
         return;
@@ -67,12 +81,9 @@ static void accel_lp_turn(att_vars_t *v, ekf_scalar_t dt)
         v->accel_lp_valid = 0u;
         return;
     }
-    /* second order in th = w dt: v - th x v + (th x (th x v)) / 2; first order loses
-     * gravity at fast rotation (|th| ~ 0.05 rad per sample) */
-    cross(th, v->accel_lp, c1);
-    cross(th, c1, c2);
-    for (i = 0; i < 3; ++i) {
-        v->accel_lp[i] = ekf_mac(ekf_sub(v->accel_lp[i], c1[i]), EKF_C(0.5), c2[i]);
+    turn_vector(th, v->accel_lp);
+    if (s->accel_lpf_order > 1u) {
+        turn_vector(th, v->accel_lp1);
     }
 }
 
@@ -105,13 +116,17 @@ ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scala
         att_cov_add_var(&v->cov, ATT_PHI + i, ekf_mul(s->euler_rate_rel, inc_var[i]));
     }
     att_cov_scale_diag(&v->cov, ATT_PHID, 3, s->euler_rate_rel);
+    att_bias_predict(&v->bias, &s->bias, d1, dt);
+    att_consider_predict(&v->consider,
+                         ekf_add(ekf_add(ekf_sq(v->x[ATT_P]), ekf_sq(v->x[ATT_Q])), ekf_sq(v->x[ATT_R])),
+                         s->angle_walk_rate, ekf_sq(tn.secth), dt);
 
     for (i = 0; i < ATT_N; ++i) {
         v->x[i] = xn[i];
     }
     v->last_dt = dt;
     if (s->accel_lpf_tau > EKF_C(0)) {
-        accel_lp_turn(v, dt);
+        accel_lp_turn(v, s, dt);
     }
     v->flags &= ~ATT_FLAG_REMAPPED;
     if (att_normalise(v)) {
@@ -119,6 +134,10 @@ ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scala
         ekf_count(&v->diag.remaps);
     }
     att_update_gimbal_flag(v, s);
+    if ((v->flags & ATT_FLAG_GIMBAL_LOCK) != 0u) {
+        /* the clamped kinematics do not follow an offset error the way V says */
+        att_bias_restart(&v->bias);
+    }
     limit_variances(v, s);
     if (att_cov_limit_variance(&v->cov, ATT_PSI, s->heading_var_max) ||
         !(att_cov_var(&v->cov, ATT_PSI) < s->heading_var_max)) {

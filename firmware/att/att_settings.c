@@ -11,6 +11,7 @@ const att_settings_t att_default_settings = {
     /* process model */
     .rate_walk = EKF_C(2.0),
     .angle_walk = EKF_C(0.001),
+    .angle_walk_rate = EKF_C(0.0015), /* reported only (att_consider.h); attekf cv */
     .euler_rate_rel = EKF_C(0.001),
     /* gyroscope */
     .gyro_noise = EKF_C(0.005),
@@ -24,17 +25,25 @@ const att_settings_t att_default_settings = {
         .bias_tau = EKF_C(10.0),
         .bias_max = EKF_C(0.035),
     },
+    .bias = {
+        .sigma_init = EKF_C(0.0087), /* 0.5 deg/s */
+        .walk = EKF_C(6.7e-5),       /* 0.038 deg/s after 100 s; attekf cv */
+        .mag_derate = EKF_C(30.0),
+        .motion = 2u,
+    },
     /* accelerometer */
     .gravity = EKF_C(9.81),
-    .accel_noise = EKF_C(0.5),
+    .accel_noise = EKF_C(0.7), /* attekf cv */
     .accel_band = EKF_C(0.0),
     .accel_reject = EKF_C(50.0),
     .accel_adapt_tau = EKF_C(0.5),
-    .accel_lpf_tau = EKF_C(1.0),
+    .accel_lpf_tau = EKF_C(1.0), /* attekf cv */
+    .accel_lpf_order = 2u,
     .accel_gate = EKF_C(10.0),
     .accel_range = EKF_C(160.0),
+    .accel_ref_sigma = EKF_C(0.005), /* 0.29 deg; reported only; attekf cv */
     /* magnetometer */
-    .mag_heading_noise = EKF_C(0.5),
+    .mag_heading_noise = EKF_C(0.5), /* attekf cv */
     .mag_gate = EKF_C(3.0),
     .mag_norm_tol = EKF_C(0.15),
     .mag_dip_tol = EKF_C(0.17),
@@ -42,6 +51,7 @@ const att_settings_t att_default_settings = {
     .mag_ref_norm = EKF_C(0.0),
     .mag_ref_dip = EKF_C(0.0),
     .mag_declination = EKF_C(0.0),
+    .mag_ref_sigma = EKF_C(0.05), /* 2.9 deg; reported only; attekf cv */
     .mag_range = EKF_C(5000.0),
     /* robustness */
     .gate_timeout = EKF_C(1.0),
@@ -77,9 +87,10 @@ enum { HI_BIG, HI_1E_2, HI_1, HI_60, HI_GIMBAL, HI_HALF_PI, HI_PI, HI_TWO_PI };
 /* What the square of a setting must be in the build's scalar (see representable). */
 enum { SQ_ANY, SQ_FINITE, SQ_POSITIVE, SQ_ZERO_OR_POSITIVE };
 
-/* One setting in two bytes: its slot (offset in att_settings_t in scalars: every field
- * before align_samples is a scalar, the rest settings too), and lo <= v <= hi (finite) and
- * its square packed as lo | hi << 3 | square << 6. */
+/* One setting in two bytes: its slot (offset in att_settings_t in scalars: every field of
+ * the table follows a scalar or a struct of scalars, or a uint16_t padded to a scalar's
+ * alignment, which the check below asserts), and lo <= v <= hi (finite) and its square
+ * packed as lo | hi << 3 | square << 6. */
 typedef struct {
     uint8_t slot, bounds;
 } setting_range_t;
@@ -87,7 +98,9 @@ typedef struct {
 #define RANGE(field, lo, hi, sq) \
     {(uint8_t)(offsetof(att_settings_t, field) / sizeof(ekf_scalar_t)), (uint8_t)((lo) | (hi) << 3 | (sq) << 6)}
 typedef char att_settings_scalar_slots[(offsetof(att_settings_t, rest) % sizeof(ekf_scalar_t) == 0 &&
-                                        offsetof(att_settings_t, gravity) % sizeof(ekf_scalar_t) == 0)
+                                        offsetof(att_settings_t, bias) % sizeof(ekf_scalar_t) == 0 &&
+                                        offsetof(att_settings_t, gravity) % sizeof(ekf_scalar_t) == 0 &&
+                                        offsetof(att_settings_t, accel_gate) % sizeof(ekf_scalar_t) == 0)
                                            ? 1
                                            : -1];
 
@@ -129,6 +142,10 @@ static const setting_range_t ranges[] = {
     RANGE(rest.rest_time, LO_0, HI_BIG, SQ_ANY),
     RANGE(rest.rest_tau, LO_0, HI_BIG, SQ_ANY),
     RANGE(rest.bias_tau, LO_0, HI_BIG, SQ_ANY),
+    RANGE(angle_walk_rate, LO_0, HI_1, SQ_ANY),
+    RANGE(accel_ref_sigma, LO_0, HI_HALF_PI, SQ_ANY),
+    RANGE(mag_ref_sigma, LO_0, HI_PI, SQ_ANY),
+    RANGE(bias.walk, LO_0, HI_1, SQ_ANY),
 };
 
 /* 1 if the table's setting is in its range and its square is what the table says. The
@@ -190,7 +207,10 @@ ekf_status_t att_settings_check(const att_settings_t *s)
     }
     if (!ekf_in_range(s->accel_range, s->gravity, big) ||
         !ekf_in_range(s->heading_var_max, ekf_max(EKF_C(1e-6), s->var_floor), big) || /* a cap below the floor */
-        !ekf_in_range(s->rest.bias_max, EKF_C(0), s->gyro_range) || s->align_samples == 0u || !representable(s)) {
+        !ekf_in_range(s->rest.bias_max, EKF_C(0), s->gyro_range) || s->align_samples == 0u ||
+        s->accel_lpf_order < 1u || s->accel_lpf_order > 2u ||
+        !ekf_in_range(s->bias.sigma_init, EKF_C(0), s->gyro_range) ||
+        !ekf_in_range(s->bias.mag_derate, EKF_C(1), EKF_C(1e4)) || s->bias.motion > 2u || !representable(s)) {
         return EKF_ERR_SETTINGS;
     }
     return EKF_OK;

@@ -53,6 +53,14 @@ static void gate_result(att_vars_t *v, const att_settings_t *s, int sensor, int 
     }
 }
 
+/* ---- the reported covariance's considered errors (att_consider.h) ---- */
+
+/* The fraction by which an update reduced a variance (its gain on that state's error). */
+static ekf_scalar_t reduction(ekf_scalar_t before, ekf_scalar_t after)
+{
+    return (before > EKF_C(0)) ? ekf_sub(EKF_C(1), ekf_div(after, before)) : EKF_C(0);
+}
+
 /* ---- gyroscope ---- */
 
 /* A clamped gyro reading (ATT_GYRO_SATURATED): the rate is at least its largest component
@@ -75,6 +83,11 @@ ekf_status_t att_stage_gyro_saturated(att_vars_t *v, const att_settings_t *s, co
     (void)att_trig(v->x[ATT_PHI], v->x[ATT_THETA], s->gimbal_limit, &t);
     att_gen_noise_jacobian(&t, g);
     att_cov_add_rate_noise(&v->cov, g, extra);
+    /* the angles' error is now the unmeasured rotation's, not the offset's */
+    att_bias_restart(&v->bias);
+    /* the low-passed force is carried over the step with the body rates, which this sample
+     * does not measure: start it again from the next accelerometer sample */
+    v->accel_lp_valid = 0u;
     ekf_count(&v->diag.gyro_saturated);
     return EKF_SKIPPED;
 }
@@ -89,8 +102,15 @@ ekf_status_t att_stage_gyro(att_vars_t *v, const att_settings_t *s, const ekf_sc
     gate = gate_for(v, s, ATT_SENSOR_GYRO, s->gyro_gate);
     r_var = ekf_sq(s->gyro_noise);
     for (i = 0; i < 3; ++i) {
-        /* the rates net of the learned offset (att_rest.h) */
-        const ekf_scalar_t nu = ekf_sub(ekf_sub(gyro[i], v->rest.bias[i]), v->x[ATT_P + i]);
+        /* the offset learned in motion stays within bias_max of zero together with the
+         * rest offset */
+        const ekf_scalar_t m = s->rest.bias_max;
+        v->bias.b[i] = ekf_clamp(v->bias.b[i], ekf_sub(ekf_neg(m), v->rest.bias[i]), ekf_sub(m, v->rest.bias[i]));
+    }
+    for (i = 0; i < 3; ++i) {
+        /* the rates net of the offset (att_rest.h, att_bias.h) */
+        const ekf_scalar_t nu =
+            ekf_sub(ekf_sub(gyro[i], ekf_add(v->rest.bias[i], v->bias.b[i])), v->x[ATT_P + i]);
         st = att_cov_update_unit(&v->cov, v->x, ATT_P + i, nu, r_var, gate, s->var_floor, &info);
         v->diag.gyro_ratio[i] = info.test_ratio;
         if (st == EKF_GATED) {
@@ -119,20 +139,44 @@ ekf_status_t att_stage_gyro(att_vars_t *v, const att_settings_t *s, const ekf_sc
 
 /* ---- accelerometer ---- */
 
-/* Blends a sample into the low-passed specific force (see accel_lp_turn, att_predict.c). */
+/* Blends a sample into the low-passed specific force (see accel_lp_turn, att_predict.c):
+ * the first stage follows the sample, the second (accel_lpf_order 2) the first stage; a
+ * restarted low-pass takes the sample in every stage. */
 static void accel_lp_blend(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t accel[3])
 {
     const ekf_scalar_t k = ekf_div(v->last_dt, ekf_add(s->accel_lpf_tau, v->last_dt));
+    ekf_scalar_t *first = (s->accel_lpf_order > 1u) ? v->accel_lp1 : v->accel_lp;
     int i;
     for (i = 0; i < 3; ++i) {
-        v->accel_lp[i] = v->accel_lp_valid ? ekf_mac(v->accel_lp[i], k, ekf_sub(accel[i], v->accel_lp[i])) : accel[i];
+        first[i] = v->accel_lp_valid ? ekf_mac(first[i], k, ekf_sub(accel[i], first[i])) : accel[i];
+    }
+    if (first != v->accel_lp) {
+        for (i = 0; i < 3; ++i) {
+            v->accel_lp[i] = v->accel_lp_valid ? ekf_mac(v->accel_lp[i], k, ekf_sub(first[i], v->accel_lp[i]))
+                                               : first[i];
+        }
     }
     v->accel_lp_valid = 1u;
 }
 
+/* After an accelerometer update (roll and pitch variances var0 before it): the colored
+ * error of the low-passed force, whose variance per axis the running linear-acceleration
+ * variance estimates and whose correlation time is the low-pass delay (accel_lpf_order
+ * stages of accel_lpf_tau), passes into the reported tilt covariance through the gains
+ * just applied (att_consider.h). */
+static void consider_accel(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t var0[2])
+{
+    const ekf_scalar_t tau = ekf_mul(ekf_from_int((int32_t)s->accel_lpf_order), s->accel_lpf_tau);
+    ekf_scalar_t kf[2];
+    kf[0] = reduction(var0[0], att_cov_var(&v->cov, ATT_PHI));
+    kf[1] = reduction(var0[1], att_cov_var(&v->cov, ATT_THETA));
+    att_consider_accel(&v->consider, kf, ekf_div(v->accel_dev_var, ekf_sq(s->gravity)),
+                       ekf_div(tau, ekf_add(tau, v->last_dt)));
+}
+
 ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t accel[3])
 {
-    ekf_scalar_t norm, a_norm, err, r_var, gate, phi0, theta0;
+    ekf_scalar_t norm, a_norm, err, r_var, gate, phi0, theta0, var0[2];
     ekf_scalar_t a[3], h[3], hj[6];
     att_trig_t t;
     ekf_status_t st;
@@ -203,11 +247,30 @@ ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_s
     att_gen_accel_jacobian(&t, hj);
     phi0 = v->x[ATT_PHI];
     theta0 = v->x[ATT_THETA];
+    var0[0] = att_cov_var(&v->cov, ATT_PHI);
+    var0[1] = att_cov_var(&v->cov, ATT_THETA);
     for (i = 0; i < 3; ++i) {
+        const ekf_scalar_t h3[3] = {hj[2 * i], hj[2 * i + 1], EKF_C(0)};
+        ekf_scalar_t pht[3];
         ekf_scalar_t nu = ekf_sub(ekf_div(a[i], norm), h[i]);
         nu = ekf_sub(nu, ekf_mul(hj[2 * i], ekf_sub(v->x[ATT_PHI], phi0)));
         nu = ekf_sub(nu, ekf_mul(hj[2 * i + 1], ekf_sub(v->x[ATT_THETA], theta0)));
+        {
+            /* the angle rows of P h^T before the update: its gain times S */
+            const ekf_scalar_t p_ff = att_cov_var(&v->cov, ATT_PHI), p_tt = att_cov_var(&v->cov, ATT_THETA);
+            const ekf_scalar_t p_ft = att_cov_get(&v->cov, ATT_PHI, ATT_THETA);
+            pht[0] = ekf_mac(ekf_mul(p_ff, h3[0]), p_ft, h3[1]);
+            pht[1] = ekf_mac(ekf_mul(p_ft, h3[0]), p_tt, h3[1]);
+            pht[2] = ekf_mac(ekf_mul(att_cov_get(&v->cov, ATT_PSI, ATT_PHI), h3[0]),
+                             att_cov_get(&v->cov, ATT_PSI, ATT_THETA), h3[1]);
+        }
         st = att_cov_update_tilt(&v->cov, v->x, hj[2 * i], hj[2 * i + 1], nu, r_var, gate, s->var_floor, &info);
+        if (st == EKF_OK) {
+            /* beyond the gimbal limit the kinematics are clamped: the innovations then carry
+             * the clamp's error, not the offset's */
+            (void)att_bias_update(&v->bias, s->bias.motion >= 1u && (v->flags & ATT_FLAG_GIMBAL_LOCK) == 0u, h3, pht,
+                                  nu, info.variance, EKF_C(1), &v->x[ATT_PHI]);
+        }
         v->diag.accel_ratio[i] = info.test_ratio;
         bypass_failed |= (st == EKF_OK) && fails_gate(&info, s->accel_gate);
         consistent = consistent && (st == EKF_OK) && !fails_gate(&info, EKF_C(3));
@@ -223,6 +286,7 @@ ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_s
     if (att_normalise(v)) {
         ekf_count(&v->diag.remaps);
     }
+    consider_accel(v, s, var0);
     att_update_gimbal_flag(v, s);
     gate_result(v, s, ATT_SENSOR_ACCEL, gated || bypass_failed);
     v->tilt_ok = (uint8_t)(consistent && (v->flags & ATT_FLAG_ACCEL_DEWEIGHTED) == 0u);
@@ -263,6 +327,9 @@ static void reset_heading(att_vars_t *v, const att_settings_t *s, ekf_scalar_t h
 {
     att_cov_reset_state(&v->cov, ATT_PSI, ekf_max(var, s->var_floor));
     v->x[ATT_PSI] = heading;
+    /* the heading no longer depends on the past offset or the past rate errors */
+    att_bias_heading_reset(&v->bias);
+    att_consider_heading_reset(&v->consider);
 }
 
 ekf_status_t att_stage_mag(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t mag[3])
@@ -332,7 +399,21 @@ ekf_status_t att_stage_mag(att_vars_t *v, const att_settings_t *s, const ekf_sca
     r_var = ekf_mac(ekf_sq(s->mag_heading_noise), v->mag_tan2_dip, ekf_div(v->accel_dev_var, ekf_sq(s->gravity)));
     /* no gate bypass for the magnetometer (a magnet that passes the norm and dip tests would
      * drag the heading): recovery is the reset above, after mag_reset_time */
-    st = att_cov_update_unit(&v->cov, v->x, ATT_PSI, nu, r_var, s->mag_gate, s->var_floor, &info);
+    {
+        static const ekf_scalar_t h3[3] = {EKF_C(0), EKF_C(0), EKF_C(1)};
+        const ekf_scalar_t var0 = att_cov_var(&v->cov, ATT_PSI);
+        const ekf_scalar_t pht[3] = {att_cov_get(&v->cov, ATT_PHI, ATT_PSI), att_cov_get(&v->cov, ATT_THETA, ATT_PSI),
+                                     var0};
+        st = att_cov_update_unit(&v->cov, v->x, ATT_PSI, nu, r_var, s->mag_gate, s->var_floor, &info);
+        if (st == EKF_OK) {
+            /* the field's errors depend on the orientation and disturbed fields pass the
+             * tests: taken at face value they would teach the vertical offset the field's
+             * errors (docs/derivation.md, "Gyroscope offset in motion"), hence mag_derate */
+            (void)att_bias_update(&v->bias, s->bias.motion >= 2u, h3, pht, nu, info.variance, s->bias.mag_derate,
+                                  &v->x[ATT_PHI]);
+            att_consider_heading(&v->consider, reduction(var0, att_cov_var(&v->cov, ATT_PSI)));
+        }
+    }
     v->diag.mag_ratio = info.test_ratio;
     if (st == EKF_GATED) {
         ekf_count(&v->diag.mag_gated);

@@ -3,8 +3,9 @@
 An estimate comes either from the C estimator run through the binding (evaluate_run) or from
 an estimator output file (evaluate_output, e.g. what `attekf record` decoded from the bus).
 Errors follow the BROAD definitions of metrics.py; in addition the per-angle Euler errors are
-set against the filter's own 3-sigma bounds (a consistency check: about 99.7 % of the samples
-should fall inside if the reported variances are right).
+set against the filter's own 3-sigma bounds and its covariance (coverage and NEES,
+consistency.py: about 99.7 % of the samples inside and NEES/dof about 1 if the reported
+covariance is right).
 
 Every sample is accounted for: the trial reports how many were scored, how many movement
 samples had no truth, how many had no estimate (filter not aligned yet, or no output row),
@@ -20,8 +21,9 @@ from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
+from . import consistency as C
 from .io import EstimatorOutput, InputError, Recording
-from .metrics import euler_to_quat, orientation_errors, quat_mul, quat_about_z, quat_to_euler, wrap_pi
+from .metrics import euler_to_quat, orientation_errors, quat_to_euler
 
 ANGLES = ("roll", "pitch", "yaw")
 METRICS = ("total", "heading", "inclination")
@@ -41,7 +43,7 @@ class TrialEval:
     err_total: Optional[np.ndarray]     # (N,) rad (BROAD errors), None without truth
     err_heading: Optional[np.ndarray]
     err_inclination: Optional[np.ndarray]
-    err_euler: Optional[np.ndarray]     # (N, 3) rad, wrapped estimate - truth
+    err_euler: Optional[np.ndarray]     # (N, 3) rad, Euler-angle errors (consistency.euler_errors)
     scored: np.ndarray                  # (N,) bool
     movement: np.ndarray                # (N,) bool
     six_d: bool
@@ -52,6 +54,7 @@ class TrialEval:
     estimator_summary: Dict[str, object] = field(default_factory=dict)
     episodes: List[Tuple[str, float, float]] = field(default_factory=list)  # (kind, start s, stop s)
     flags: Optional[np.ndarray] = None  # (N,) ATT_FLAG_* per sample (0 where no output row), or None
+    nees: float = float("nan")          # mean NEES / dof (consistency.py), NaN without a covariance
 
     @property
     def has_truth(self) -> bool:
@@ -68,6 +71,7 @@ class TrialEval:
             "heading_offset_removed_deg": clean(self.heading_offset_deg),
             "rmse_deg": {k: clean(v) for k, v in self.rmse_deg.items()},
             "within_3sigma_pct": {k: clean(v) for k, v in self.within_3sigma_pct.items()},
+            "nees_per_dof": clean(self.nees),
             "counts": dict(self.counts),
             "estimator_summary": self.estimator_summary,
         }
@@ -89,7 +93,7 @@ def recording_episodes(rec: Recording) -> List[Tuple[str, float, float]]:
 
 def _score(rec: Recording, name: str, estimator: str, euler_est: np.ndarray,
            var_euler: Optional[np.ndarray], six_d: bool, counts: Dict[str, int],
-           summary: Dict[str, object]) -> TrialEval:
+           summary: Dict[str, object], angle_cov: Optional[np.ndarray] = None) -> TrialEval:
     n = len(rec)
     movement = np.ones(n, bool) if rec.movement is None else rec.movement.astype(bool)
     have_est = np.all(np.isfinite(euler_est), axis=1)
@@ -110,32 +114,24 @@ def _score(rec: Recording, name: str, estimator: str, euler_est: np.ndarray,
     q_est = euler_to_quat(euler_est)
     errs = orientation_errors(q_est, rec.quat_ref, movement, six_d=six_d)
     counts["scored"] = int(errs.scored.sum())
-    if six_d and errs.heading_offset_rad != 0.0:
-        q_est = quat_mul(quat_about_z(-errs.heading_offset_rad), q_est)
-        euler_cmp = quat_to_euler(q_est)
-    else:
-        euler_cmp = euler_est
     euler_ref = np.full((n, 3), np.nan)
     euler_ref[have_ref] = quat_to_euler(rec.quat_ref[have_ref])
-    err_euler = wrap_pi(euler_cmp - euler_ref)
-    within = {}
-    for k, ang in enumerate(ANGLES):
-        if var_euler is None or counts["scored"] == 0:
-            within[ang] = float("nan")
-            continue
-        sel = errs.scored & np.isfinite(var_euler[:, k])
-        if six_d and ang == "yaw":
-            within[ang] = float("nan")  # the yaw variance describes an unobservable heading
-            continue
-        inside = np.abs(err_euler[sel, k]) <= 3.0 * np.sqrt(var_euler[sel, k])
-        within[ang] = float(100.0 * inside.mean()) if inside.size else float("nan")
+    err_euler = C.euler_errors(q_est, rec.quat_ref, six_d, errs.scored)
+    within = {k: float("nan") for k in ANGLES}
+    nees = float("nan")
+    if (var_euler is not None or angle_cov is not None) and counts["scored"] > 0:
+        # 6D: yaw is not judged, its variance describes an unobservable heading
+        cons = C.consistency(q_est, rec.quat_ref, var=var_euler, angle_cov=angle_cov,
+                             movement=movement, six_d=six_d)
+        within = dict(cons["coverage_pct"])
+        nees = float(cons["nees"])
     return TrialEval(name=name, source=rec.source, estimator=estimator, t=rec.t, euler_est=euler_est,
                      var_euler=var_euler, euler_ref=euler_ref, err_total=errs.total,
                      err_heading=errs.heading, err_inclination=errs.inclination, err_euler=err_euler,
                      scored=errs.scored, movement=movement, six_d=six_d,
                      heading_offset_deg=float(np.degrees(errs.heading_offset_rad)),
                      rmse_deg=errs.rmse_deg(), within_3sigma_pct=within, counts=counts,
-                     estimator_summary=summary, episodes=recording_episodes(rec))
+                     estimator_summary=summary, episodes=recording_episodes(rec), nees=nees)
 
 
 def evaluate_run(rec: Recording, settings: Optional[Dict[str, float]] = None, scalar: str = "float",
@@ -156,7 +152,11 @@ def evaluate_run(rec: Recording, settings: Optional[Dict[str, float]] = None, sc
     summary = res.summary()
     counts = {"not_aligned": int(not_aligned.sum()), "refused": int(summary["samples_refused"])}
     estimator = f"C estimator ({scalar}, binding){'' if mag_used else ', no magnetometer'}"
-    tr = _score(rec, rec.name, estimator, euler, var, six_d, counts, summary)
+    cov = None
+    if res.angle_cov is not None:
+        cov = res.angle_cov.copy()
+        cov[not_aligned] = np.nan
+    tr = _score(rec, rec.name, estimator, euler, var, six_d, counts, summary, cov)
     tr.flags = np.asarray(res.flags, dtype=np.uint32)
     return tr, res
 
@@ -233,18 +233,18 @@ def _f(v: float, digits: int = 2) -> str:
 
 def format_table(trials: List[TrialEval]) -> str:
     """Plain-text table: one row per trial, then the mean (when there are several trials)."""
-    head = ["trial", "samples", "scored", "total", "heading", "incl.", "in 3σ r/p/y %", "refused"]
+    head = ["trial", "samples", "scored", "total", "heading", "incl.", "in 3σ r/p/y %", "NEES/dof", "refused"]
     rows = []
     for tr in trials:
         w = tr.within_3sigma_pct
         within = "/".join("-" if not math.isfinite(w[a]) else f"{w[a]:.0f}" for a in ANGLES)
         rows.append([tr.name, str(tr.counts["samples"]), str(tr.counts.get("scored", 0)),
                      _f(tr.rmse_deg["total"]), _f(tr.rmse_deg["heading"]), _f(tr.rmse_deg["inclination"]),
-                     within, str(tr.counts.get("refused", "-"))])
+                     within, _f(tr.nees), str(tr.counts.get("refused", "-"))])
     if len(trials) > 1:
         m = mean_row(trials)
         rows.append([f"mean of {len(trials)}", "", "", _f(m["total"]), _f(m["heading"]),
-                     _f(m["inclination"]), "", ""])
+                     _f(m["inclination"]), "", "", ""])
     widths = [max(len(r[i]) for r in rows + [head]) for i in range(len(head))]
     lines = ["RMSE over the scored (movement) samples, degrees"
              + ("; 6D: mean heading offset removed" if any(t.six_d for t in trials) else "")]

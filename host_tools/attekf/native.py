@@ -170,6 +170,8 @@ class _Lib:
             ("attekf_diag_table_complete", c.c_int, []),
             ("attekf_run", c.c_int, [c.c_void_p, c.c_size_t, _dp, _dp, _dp, _dp,
                                      _dp, _dp, _dp, _u32p, _u8p]),
+            ("attekf_run_cov", c.c_int, [c.c_void_p, c.c_size_t, _dp, _dp, _dp, _dp,
+                                         _dp, _dp, _dp, _u32p, _u8p, _dp]),
         ):
             try:
                 fn = getattr(lib, name)
@@ -317,7 +319,10 @@ class Result:
 
     t        (N,) s, the recording's timestamps
     state    (N, 9) x = [p q r phi theta psi phid thetad psid] (rad/s, rad)
-    var      (N, 9) diagonal of P (same order; (rad/s)^2, rad^2)
+    var      (N, 9) att_get_variances (same order; (rad/s)^2, rad^2): the diagonal of P, for
+             the angles that of the reported attitude covariance
+    angle_cov (N, 6) the reported roll/pitch/yaw covariance, rad^2 (att_get_angle_covariance:
+             phi phi, theta theta, psi psi, phi theta, phi psi, theta psi)
     quat     (N, 4) [w x y z] body->ENU
     flags    (N,) uint32 ATT_FLAG_* bits
     status   (N, 5) uint8 ekf_status_t of the step and of its stages (STATUS_COLUMNS)
@@ -344,6 +349,7 @@ class Result:
     mag_absent: int = 0
     c_seconds: float = 0.0  # CPU time inside the attekf_run calls (the C loop), s
     diag_values: Dict[str, Union[float, tuple]] = field(default_factory=dict)
+    angle_cov: Optional[np.ndarray] = None
 
     def __len__(self) -> int:
         return int(self.t.shape[0])
@@ -449,6 +455,7 @@ def _run(lib: _Lib, fbuf, sbuf, t: np.ndarray, dt: np.ndarray, gyr: np.ndarray,
     quat = np.empty((n, 4), np.float64)
     flags = np.empty(n, np.uint32)
     status = np.empty((n, len(STATUS_COLUMNS)), np.uint8)
+    cov = np.empty((n, 6), np.float64)
 
     def ptr(a, typ, start):
         # rows from 'start' of a C-contiguous array; the view keeps the array alive
@@ -459,10 +466,11 @@ def _run(lib: _Lib, fbuf, sbuf, t: np.ndarray, dt: np.ndarray, gyr: np.ndarray,
     for start in range(0, n, block):
         stop = min(n, start + block)
         t0 = time.process_time()
-        rc = lib.lib.attekf_run(
+        rc = lib.lib.attekf_run_cov(
             fbuf, stop - start, ptr(dt, _dp, start), ptr(gyr, _dp, start), ptr(acc, _dp, start),
             ptr(mag, _dp, start), ptr(state, _dp, start), ptr(var, _dp, start),
-            ptr(quat, _dp, start), ptr(flags, _u32p, start), ptr(status, _u8p, start))
+            ptr(quat, _dp, start), ptr(flags, _u32p, start), ptr(status, _u8p, start),
+            ptr(cov, _dp, start))
         c_seconds += time.process_time() - t0
         if rc != 0:
             raise NativeError(f"attekf_run: {lib.status_name(rc)}")
@@ -473,7 +481,8 @@ def _run(lib: _Lib, fbuf, sbuf, t: np.ndarray, dt: np.ndarray, gyr: np.ndarray,
     return Result(t=t, state=state, var=var, quat=quat, flags=flags, status=status,
                   diag=lib.diag(fbuf), settings=_settings_to_dict(lib, sbuf), scalar=lib.scalar,
                   status_names={int(c): lib.status_name(int(c)) for c in codes},
-                  mag_absent=mag_absent, c_seconds=c_seconds, diag_values=lib.diag_values(fbuf))
+                  mag_absent=mag_absent, c_seconds=c_seconds, diag_values=lib.diag_values(fbuf),
+                  angle_cov=cov)
 
 
 def _new_filter(lib: _Lib, sbuf):

@@ -25,6 +25,7 @@ typedef struct {
 static const setting_row_t k_settings[] = {
     SCALAR_ROW(rate_walk, "rad/s/sqrt(s)", "body-rate random walk"),
     SCALAR_ROW(angle_walk, "rad/sqrt(s)", "extra angle random walk (model error)"),
+    SCALAR_ROW(angle_walk_rate, "sqrt(s)", "angle random walk per rad/s of body rate (gyro scale errors; reported)"),
     SCALAR_ROW(euler_rate_rel, "1", "independent Euler-rate error, fraction of their variance per step"),
     SCALAR_ROW(gyro_noise, "rad/s", "gyro white noise, 1 sigma per sample"),
     SCALAR_ROW(gyro_gate, "sigma", "gyro innovation gate, 0 = off"),
@@ -35,14 +36,22 @@ static const setting_row_t k_settings[] = {
     SCALAR_ROW(rest.rest_tau, "s", "time constant of the rest detector's low-pass filters"),
     SCALAR_ROW(rest.bias_tau, "s", "averaging time of the gyro offset, 0 = no offset estimation"),
     SCALAR_ROW(rest.bias_max, "rad/s", "|gyro offset| per axis never exceeds this"),
+    SCALAR_ROW(bias.sigma_init, "rad/s", "1 sigma of the gyro offset before the first rest"),
+    SCALAR_ROW(bias.walk, "rad/s/sqrt(s)", "random walk of the gyro offset (instability)"),
+    SCALAR_ROW(bias.mag_derate, "1", "magnetometer innovations' variance factor in the offset's update (>= 1)"),
+    { "bias.motion", offsetof(att_settings_t, bias.motion), ATTEKF_SETTING_U16, "0/1/2",
+      "learn the gyro offset in motion: 0 no, 1 from the accelerometer, 2 and the magnetometer" },
     SCALAR_ROW(gravity, "m/s^2", "magnitude of gravity"),
     SCALAR_ROW(accel_noise, "m/s^2", "accelerometer noise incl. unmodelled motion, 1 sigma"),
     SCALAR_ROW(accel_band, "m/s^2", "| |a| - g | at which the accel variance doubles, 0 = off"),
     SCALAR_ROW(accel_reject, "m/s^2", "| |a| - g | above which accel is not fused"),
     SCALAR_ROW(accel_adapt_tau, "s", "running mean of ( |a| - g )^2 added to the accel variance, 0 = off"),
-    SCALAR_ROW(accel_lpf_tau, "s", "accel low-pass in the earth-fixed (rate-compensated) frame, 0 = off"),
+    SCALAR_ROW(accel_lpf_tau, "s", "accel low-pass in the earth-fixed (rate-compensated) frame, per stage, 0 = off"),
+    { "accel_lpf_order", offsetof(att_settings_t, accel_lpf_order), ATTEKF_SETTING_U16, "stages",
+      "stages of the accel low-pass (1 or 2)" },
     SCALAR_ROW(accel_gate, "sigma", "accel innovation gate, 0 = off"),
     SCALAR_ROW(accel_range, "m/s^2", "accel |component| above this is refused"),
+    SCALAR_ROW(accel_ref_sigma, "rad", "accel gravity-direction error averaging cannot remove (reported)"),
     SCALAR_ROW(mag_heading_noise, "rad", "magnetic heading noise, 1 sigma"),
     SCALAR_ROW(mag_gate, "sigma", "magnetometer innovation gate, 0 = off"),
     SCALAR_ROW(mag_norm_tol, "fraction", "allowed | |m|/ref - 1 | before 'disturbed'"),
@@ -51,6 +60,7 @@ static const setting_row_t k_settings[] = {
     SCALAR_ROW(mag_ref_norm, "uT", "reference field norm, 0 = learn at alignment"),
     SCALAR_ROW(mag_ref_dip, "rad", "reference dip, positive down (if mag_ref_norm > 0)"),
     SCALAR_ROW(mag_declination, "rad", "magnetic declination, east positive"),
+    SCALAR_ROW(mag_ref_sigma, "rad", "magnetic reference error averaging cannot remove (reported)"),
     SCALAR_ROW(mag_range, "uT", "magnetometer |component| above this is refused"),
     SCALAR_ROW(gate_timeout, "s", "continuous gating after which a gate is bypassed, 0 = never"),
     SCALAR_ROW(gimbal_limit, "rad", "|pitch| above which heading is held"),
@@ -296,6 +306,13 @@ int attekf_run(att_ekf_t *f, size_t n, const double *dt, const double *gyr, cons
                const double *mag, double *state, double *var, double *quat, uint32_t *flags,
                uint8_t *status)
 {
+    return attekf_run_cov(f, n, dt, gyr, acc, mag, state, var, quat, flags, status, NULL);
+}
+
+int attekf_run_cov(att_ekf_t *f, size_t n, const double *dt, const double *gyr, const double *acc,
+                   const double *mag, double *state, double *var, double *quat, uint32_t *flags,
+                   uint8_t *status, double *angle_cov)
+{
     size_t i;
     int k;
     if (f == NULL || (n > 0u && (dt == NULL || gyr == NULL || acc == NULL))) {
@@ -330,6 +347,13 @@ int attekf_run(att_ekf_t *f, size_t n, const double *dt, const double *gyr, cons
             att_get_variances(f, v);
             for (k = 0; k < ATT_N; ++k) {
                 var[(size_t)ATT_N * i + (size_t)k] = ekf_to_double(v[k]);
+            }
+        }
+        if (angle_cov != NULL) {
+            ekf_scalar_t c[6];
+            att_get_angle_covariance(f, c);
+            for (k = 0; k < 6; ++k) {
+                angle_cov[6u * i + (size_t)k] = ekf_to_double(c[k]);
             }
         }
         if (quat != NULL) {

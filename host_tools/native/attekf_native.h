@@ -112,7 +112,8 @@ int attekf_diag_table_complete(void);
  *               passed to the filter, which refuses it (and counts it).
  * Outputs (each may be NULL when not wanted):
  *   state[n*9]  the state vector after the sample (att_defs.h order)
- *   var[n*9]    the diagonal of P after the sample
+ *   var[n*9]    att_get_variances after the sample (the diagonal of P; for the angles that
+ *               of the reported attitude covariance, att_get_angle_covariance)
  *   quat[n*4]   att_get_quaternion after the sample (w x y z, body to ENU)
  *   flags[n]    att_flags after the sample
  *   status[n*ATTEKF_STATUS_COLS]  ekf_status_t of the step and of each stage
@@ -122,6 +123,13 @@ int attekf_diag_table_complete(void);
 int attekf_run(att_ekf_t *f, size_t n, const double *dt, const double *gyr, const double *acc,
                const double *mag, double *state, double *var, double *quat, uint32_t *flags,
                uint8_t *status);
+
+/* attekf_run, and angle_cov[n*6] (may be NULL) receives att_get_angle_covariance after each
+ * sample: the reported roll/pitch/yaw covariance, packed (phi phi, theta theta, psi psi,
+ * phi theta, phi psi, theta psi), rad^2. */
+int attekf_run_cov(att_ekf_t *f, size_t n, const double *dt, const double *gyr, const double *acc,
+                   const double *mag, double *state, double *var, double *quat, uint32_t *flags,
+                   uint8_t *status, double *angle_cov);
 
 #ifdef __cplusplus
 }

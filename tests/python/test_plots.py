@@ -120,8 +120,16 @@ def test_broad_trial_plot(broad_trial, tmp_path):
     try:
         texts = [t.get_text() for ax in fig.axes for t in ax.texts]
         beyond = [t for t in texts if "beyond" in t]
-        # the 99.5th percentile zoom leaves some samples outside: they are counted
-        assert beyond and all("samples beyond" in t for t in beyond)
+        assert all("samples beyond" in t for t in beyond)
+        # every Euler error panel counts exactly the samples outside its range (the range
+        # widens to show the 3-sigma band, so with a band wider than the error there are none)
+        for k, ang in enumerate(("roll", "pitch", "yaw")):
+            ax = next(a for a in fig.axes if a.get_ylabel() == f"{ang} error (°)")
+            lim = ax.get_ylim()[1]
+            err = np.degrees(tr.err_euler[:, k])
+            n = int((np.isfinite(err) & (np.abs(err) > lim)).sum())
+            notes = [t.get_text() for t in ax.texts if "beyond" in t.get_text()]
+            assert (notes == []) if n == 0 else (len(notes) == 1 and notes[0].startswith(f"▲▼ {n} of ")), (ang, n, notes)
     finally:
         import matplotlib.pyplot as plt
         plt.close(fig)

@@ -236,6 +236,8 @@ def _bench(args, paths, methods, cfg, out, plan) -> int:
     if args.per_trial:
         print()
         print(bench.format_trials(result))
+        print()
+        print(bench.format_consistency(result))
     print()
     costs = bench.format_costs(result)
     print(costs)
@@ -249,7 +251,8 @@ def _bench(args, paths, methods, cfg, out, plan) -> int:
         with out.open(plan["table"]) as fh:
             fh.write(summary + "\n\n" + bench.format_trials(result) + "\n\n"
                      + bench.format_trials(result, "heading") + "\n\n"
-                     + bench.format_trials(result, "inclination") + "\n\n" + costs + "\n"
+                     + bench.format_trials(result, "inclination") + "\n\n"
+                     + bench.format_consistency(result) + "\n\n" + costs + "\n"
                      + f"\ncommand: {result['command']}\ncommit: {git.get('commit')}"
                      + (" + uncommitted changes" if git.get("uncommitted_changes") else "") + "\n")
     if plan.get("plot"):
