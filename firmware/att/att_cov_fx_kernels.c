@@ -391,9 +391,17 @@ static ekf_status_t update(att_cov_t *c, ekf_scalar_t x[ATT_N], const int32_t v[
         for (i = 0; i < ATT_N; ++i) {
             const int sh = -(base + ((i == k) ? eta : c->e[i]));
             const int64_t p = (int64_t)v[i] * wv;
-            const ekf_scalar_t dx = (sh > 0 && sh < 63) ? att_fx_shr(p, sh) : att_fx_to_q(p, sh);
-            xn[i] = ekf_fx_add(x[i], dx);
-            bad = ekf_finite_acc(bad, xn[i]);
+            const int32_t ph = (int32_t)(p >> 32);
+            if (sh > 32 && sh < 63 && (uint32_t)ekf_fx_hi(x[i]) + 0x20000000u < 0x40000000u) {
+                /* the common case: the correction from the product's high word (|dx| < 2^31)
+                 * and |x_i| < 2^61, so the sum is finite and exact (att_fx_shr's rounding) */
+                const int32_t dx = (ph >> (sh - 32)) + ((ph >> (sh - 33)) & 1);
+                xn[i] = (ekf_scalar_t)((uint64_t)x[i] + (uint64_t)(int64_t)dx);
+            } else {
+                const ekf_scalar_t dx = (sh > 0 && sh < 63) ? att_fx_shr(p, sh) : att_fx_to_q(p, sh);
+                xn[i] = ekf_fx_add(x[i], dx);
+                bad = ekf_finite_acc(bad, xn[i]);
+            }
         }
         if (!(bad == EKF_C(0))) {
             return EKF_ERR_NUMERIC;
@@ -422,7 +430,7 @@ static ekf_status_t update(att_cov_t *c, ekf_scalar_t x[ATT_N], const int32_t v[
          * scale where c'_kk is in the band, or the floor's if the floor is larger */
         const int bq = ekf_fx_bitlen64((uint64_t)r_var);
         const uint32_t rm = (uint32_t)((bq >= 32) ? (uint64_t)r_var >> (bq - 32) : (uint64_t)r_var << (32 - bq));
-        const int64_t rho = (int64_t)(((uint64_t)rm * gm) >> 33); /* < 2^31 */
+        const int32_t rho = (int32_t)(((uint64_t)rm * gm) >> 33); /* < 2^31 */
         const int xr = bq - 96 - 2 * eta - xs;                   /* rho (real) = rho 2^xr */
         const int64_t pk = (int64_t)v[k] * rho;                     /* c'_kk = pk 2^(xr - 29) */
         int ek = (pk <= 0) ? ATT_FX_E_MIN : att_fx_norm_exp((uint64_t)pk, xr - ATT_FX_CF + 2 * eta);
