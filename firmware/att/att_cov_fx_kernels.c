@@ -41,8 +41,25 @@ static int block_row(const int64_t *v, int32_t *w, int bits)
         m |= (v[j] < 0) ? (uint64_t)0 - (uint64_t)v[j] : (uint64_t)v[j];
     }
     sh = ekf_fx_bitlen64(m) - bits;
-    for (j = 0; j < ATT_N; ++j) {
-        w[j] = att_fx_to_c(v[j], sh);
+    /* every |v_j| < 2^(sh + bits), bits <= 30: the rounded words stay within 2^30, so
+     * att_fx_to_c's range checks are not needed (the same rounding: floor plus the last
+     * bit shifted out) */
+    if (sh >= 32) {
+        const int k = sh - 32;
+        for (j = 0; j < ATT_N; ++j) {
+            const int32_t hi = (int32_t)(v[j] >> 32);
+            w[j] = (hi >> k) + (int32_t)((k > 0) ? ((uint32_t)hi >> (k - 1)) & 1u : (uint32_t)v[j] >> 31);
+        }
+    } else if (sh > 0) {
+        for (j = 0; j < ATT_N; ++j) {
+            const int32_t hi = (int32_t)(v[j] >> 32);
+            const uint32_t lo = (uint32_t)v[j];
+            w[j] = (int32_t)((lo >> sh) | ((uint32_t)hi << (32 - sh))) + (int32_t)((lo >> (sh - 1)) & 1u);
+        }
+    } else {
+        for (j = 0; j < ATT_N; ++j) {
+            w[j] = (int32_t)((uint32_t)v[j] << -sh);
+        }
     }
     return sh;
 }
@@ -63,32 +80,31 @@ static void scaled_rows(const att_cov_t *c, const ekf_nz_t *pat, int nnz, const 
     for (r = 0; r < NR; ++r) {
         const int row = base + r, k0 = k;
         ekf_scalar_t diag = EKF_FX_ONE;
-        int top, j, kend;
+        int top = INT32_MIN, b, j, kend;
+        int32_t *fr = f[r];
         for (j = 0; j < ATT_N; ++j) {
-            f[r][j] = 0;
+            fr[j] = 0;
         }
-        for (; k < nnz && pat[k].row == row; ++k) {
-            if (pat[k].col == row) {
-                diag += d[k];
-            }
-        }
-        kend = k;
         /* F~_rj = F_rj 2^(e_j - e_r) 2^-34: the row's largest bit length with the exponents */
-        top = att_fx_abslen(diag) + c->e[row];
-        for (k = k0; k < kend; ++k) {
+        for (; k < nnz && pat[k].row == row; ++k) {
             const int col = pat[k].col;
-            if (col != row && d[k] != 0) {
-                const int b = att_fx_abslen(d[k]) + c->e[col];
+            if (col == row) {
+                diag += d[k];
+            } else if (d[k] != 0) {
+                b = att_fx_abslen(d[k]) + c->e[col];
                 top = (b > top) ? b : top;
             }
         }
+        kend = k;
+        b = att_fx_abslen(diag) + c->e[row];
+        top = (b > top) ? b : top;
         for (k = k0; k < kend; ++k) {
             const int col = pat[k].col;
-            if (col != row) {
-                f[r][col] = att_fx_to_c(d[k], top - 28 - c->e[col]);
+            if (col != row && d[k] != 0) {
+                fr[col] = att_fx_to_c(d[k], top - 28 - c->e[col]);
             }
         }
-        f[r][row] = att_fx_to_c(diag, top - 28 - c->e[row]);
+        fr[row] = att_fx_to_c(diag, top - 28 - c->e[row]);
         ph[r] = top - 28 - EKF_FX_FRAC - c->e[row];
     }
 }
@@ -139,9 +155,26 @@ static void propagate_factor(att_cov_t *c, const ekf_nz_t *pat, int nnz, const e
     /* the rest of the changed rows, in the new scales: C'_il = c'_il 2^(29 + e_i + e_l - e'_i - e'_l) */
     for (r = 0; r < NR; ++r) {
         const int i = base + r, di = c->e[i] - en[r];
-        for (l = 0; l < ATT_N; ++l) { /* the rows F leaves: c'_il = A_il */
-            if (l < base || l >= base + NR) {
-                c->c[att_fx_ix[i][l]] = att_fx_w(a[r][l], -(al[r] + ATT_FX_CF + di));
+        const int sh = -(al[r] + ATT_FX_CF + di);
+        const uint8_t *ix = att_fx_ix[i];
+        if (sh <= 0 && sh >= -1) {
+            /* |A_rl| < 2^30 (block_row): a left shift by at most one bit stays within the word */
+            for (l = 0; l < ATT_N; ++l) { /* the rows F leaves: c'_il = A_il */
+                if (l < base || l >= base + NR) {
+                    c->c[ix[l]] = (int32_t)((uint32_t)a[r][l] << -sh);
+                }
+            }
+        } else if (sh > 0 && sh < 32) {
+            for (l = 0; l < ATT_N; ++l) {
+                if (l < base || l >= base + NR) {
+                    c->c[ix[l]] = (a[r][l] >> sh) + ((a[r][l] >> (sh - 1)) & 1);
+                }
+            }
+        } else {
+            for (l = 0; l < ATT_N; ++l) {
+                if (l < base || l >= base + NR) {
+                    c->c[ix[l]] = att_fx_w(a[r][l], sh);
+                }
             }
         }
         for (l = r + 1; l < NR; ++l) {
