@@ -86,6 +86,35 @@ void att_fx_set_exp(att_cov_t *c, int i, int en)
     if (k == 0) {
         return;
     }
+    if (k > 0 && k < 16) {
+        /* a larger scale (the common case): every word a rounded right shift, as below */
+        const uint8_t *ix = att_fx_ix[i];
+        for (j = 0; j < ATT_N; ++j) {
+            int32_t *p = &c->c[ix[j]];
+            const int kk = (j == i) ? 2 * k : k;
+            *p = (*p >> kk) + ((*p >> (kk - 1)) & 1);
+        }
+        c->e[i] = (int8_t)en;
+        return;
+    }
+    if (k < 0 && k > -15) {
+        /* a smaller scale (a variance back into the band): exact left shifts when every word
+         * of the row, the diagonal shifted twice as far, stays within the word */
+        const uint8_t *ix = att_fx_ix[i];
+        const int32_t d = c->c[ix[i]];
+        uint32_t m = 0u;
+        for (j = 0; j < ATT_N; ++j) {
+            const int32_t w = c->c[ix[j]];
+            m |= (uint32_t)(w ^ (w >> 31));
+        }
+        if ((m >> (31 + k)) == 0u && ((uint32_t)(d ^ (d >> 31)) >> (31 + 2 * k)) == 0u) {
+            for (j = 0; j < ATT_N; ++j) {
+                c->c[ix[j]] = (int32_t)((uint32_t)c->c[ix[j]] << ((j == i) ? -2 * k : -k));
+            }
+            c->e[i] = (int8_t)en;
+            return;
+        }
+    }
     for (j = 0; j < ATT_N; ++j) {
         int32_t *p = &c->c[att_fx_ix[i][j]];
         const int kk = (j == i) ? 2 * k : k;
