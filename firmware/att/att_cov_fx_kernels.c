@@ -20,7 +20,13 @@
 
 #include "ekf_util.h"
 
-#define HALF32 ((int64_t)1 << 31)
+/* round(a b 2^-32) of two words: the product's high word plus the top bit of its low word
+ * (the same as (a b + 2^31) >> 32, without the rounding constant in the accumulator). */
+ATT_FX_INLINE uint32_t mul_hi_round(int32_t a, int32_t b)
+{
+    const int64_t p = (int64_t)a * b;
+    return (uint32_t)(int32_t)(p >> 32) + ((uint32_t)p >> 31);
+}
 
 /* Dot product of two 9-vectors of words, exact (nine multiply-accumulates). */
 ATT_FX_INLINE int64_t dot9(const int32_t *a, const int32_t *b)
@@ -408,7 +414,7 @@ static ekf_status_t update(att_cov_t *c, ekf_scalar_t x[ATT_N], const int32_t v[
     /* T = gamma v in Q2.30, the new variances c_ii - T_i v_i, the new state */
     for (i = 0; i < ATT_N; ++i) {
         T[i] = (int32_t)(((int64_t)v[i] * gamma30 + (1 << 28)) >> 29);
-        dg[i] = (int32_t)((uint32_t)c->c[att_fx_ix[i][i]] - ((uint32_t)(((int64_t)T[i] * v[i] + HALF32) >> 32) << 2));
+        dg[i] = (int32_t)((uint32_t)c->c[att_fx_ix[i][i]] - (mul_hi_round(T[i], v[i]) << 2));
         if (i != k && dg[i] < -ATT_FX_TOL) {
             return EKF_ERR_NUMERIC; /* indefinite beyond rounding: no floor hides it */
         }
@@ -452,7 +458,7 @@ static ekf_status_t update(att_cov_t *c, ekf_scalar_t x[ATT_N], const int32_t v[
             x[i] = xn[i];
             *p++ = dg[i];
             for (j = i + 1; j < ATT_N; ++j) {
-                *p = (int32_t)((uint32_t)*p - ((uint32_t)(((int64_t)ti * *vj++ + HALF32) >> 32) << 2));
+                *p = (int32_t)((uint32_t)*p - (mul_hi_round(ti, *vj++) << 2));
                 ++p;
             }
         }
