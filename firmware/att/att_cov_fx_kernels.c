@@ -469,15 +469,26 @@ static ekf_status_t update(att_cov_t *c, ekf_scalar_t x[ATT_N], const int32_t v[
          * scale where c'_kk is in the band, or the floor's if the floor is larger */
         const int bq = ekf_fx_bitlen64((uint64_t)r_var);
         const uint32_t rm = (uint32_t)((bq >= 32) ? (uint64_t)r_var >> (bq - 32) : (uint64_t)r_var << (32 - bq));
-        const int32_t rho = (int32_t)(((uint64_t)rm * gm) >> 33); /* < 2^31 */
+        const int32_t rho = (int32_t)((uint32_t)(((uint64_t)rm * gm) >> 32) >> 1); /* < 2^31 */
         const int xr = bq - 96 - 2 * eta - xs;                   /* rho (real) = rho 2^xr */
         const int64_t pk = (int64_t)v[k] * rho;                     /* c'_kk = pk 2^(xr - 29) */
         int ek = (pk <= 0) ? ATT_FX_E_MIN : att_fx_norm_exp((uint64_t)pk, xr - ATT_FX_CF + 2 * eta);
         ek = (ef > ek) ? ef : ek;
         ek = (ek < ATT_FX_E_MIN) ? ATT_FX_E_MIN : ek;
-        for (i = 0; i < ATT_N; ++i) {
-            c->c[att_fx_ix[i][k]] = att_fx_to_c((int64_t)v[i] * rho, -(xr + ((i == k) ? 2 : 1) * (eta - ek)));
+        const int s1 = -(xr + eta - ek); /* the shift of c'_ik, i != k */
+        const uint8_t *ix = att_fx_ix[k];
+        if (s1 > 32 && s1 < 63) {
+            /* from the product's high word (att_fx_to_c's rounding; |result| < 2^30) */
+            for (i = 0; i < ATT_N; ++i) {
+                const int32_t h = (int32_t)(((int64_t)v[i] * rho) >> 32);
+                c->c[ix[i]] = (h >> (s1 - 32)) + ((h >> (s1 - 33)) & 1);
+            }
+        } else {
+            for (i = 0; i < ATT_N; ++i) {
+                c->c[ix[i]] = att_fx_to_c((int64_t)v[i] * rho, s1);
+            }
         }
+        c->c[ix[k]] = att_fx_to_c(pk, -(xr + 2 * (eta - ek)));
         c->e[k] = (int8_t)ek;
     }
     /* the floor (a variance that can be below it: below the band, or in a scale at most the
