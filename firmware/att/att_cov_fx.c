@@ -22,6 +22,7 @@ const uint8_t att_fx_ix[ATT_N][ATT_N] = {
     {6, 14, 21, 27, 32, 36, 39, 40, 41},  {7, 15, 22, 28, 33, 37, 40, 42, 43},
     {8, 16, 23, 29, 34, 38, 41, 43, 44},
 };
+const uint8_t att_fx_dg[ATT_N] = {0, 9, 17, 24, 30, 35, 39, 42, 44};
 
 /* ---- numeric helpers ---- */
 
@@ -131,7 +132,7 @@ void att_fx_set_exp(att_cov_t *c, int i, int en)
 
 void att_fx_renorm(att_cov_t *c, int i)
 {
-    const int32_t v = c->c[att_fx_ix[i][i]];
+    const int32_t v = c->c[att_fx_dg[i]];
     int en;
     if (v >= ATT_FX_C_ONE || v <= 0) {
         return;
@@ -241,7 +242,7 @@ void att_cov_add_diag(att_cov_t *c, int first, int len, ekf_scalar_t var)
 
 void att_cov_add_var(att_cov_t *c, int i, ekf_scalar_t var)
 {
-    int32_t *d = &c->c[att_fx_ix[i][i]];
+    int32_t *d = &c->c[att_fx_dg[i]];
     int64_t sum;
     if (var <= 0 || (c->inf & (1u << i)) != 0u) {
         return;
@@ -271,12 +272,12 @@ void att_cov_scale_diag(att_cov_t *c, int first, int len, ekf_scalar_t rel)
         return;
     }
     for (i = first; i < first + len; ++i) {
-        const int32_t d = c->c[att_fx_ix[i][i]];
+        const int32_t d = c->c[att_fx_dg[i]];
         if (d > 0 && rel < ((ekf_scalar_t)1 << 34)) {
             /* rel < 2^34 raw: d rel in one 32 x 32 product */
             const int64_t sum = (int64_t)d + (int64_t)(((uint64_t)(uint32_t)d * (uint32_t)(rel >> 2)) >> (EKF_FX_FRAC - 2));
             if (sum < INT32_MAX) {
-                c->c[att_fx_ix[i][i]] = (int32_t)sum;
+                c->c[att_fx_dg[i]] = (int32_t)sum;
                 continue;
             }
         }
@@ -304,7 +305,7 @@ int att_cov_floor_diag(att_cov_t *c, ekf_scalar_t floor)
     for (i = 0; i < ATT_N; ++i) {
         /* a variance beyond the scalar's range: an overflow of the covariance the filter can
          * report (counted, infinite) */
-        if (att_fx_abslen(c->c[att_fx_ix[i][i]]) + 2 * c->e[i] + EKF_FX_FRAC - ATT_FX_CF > 62 && (c->inf & (1u << i)) == 0u) {
+        if (att_fx_abslen(c->c[att_fx_dg[i]]) + 2 * c->e[i] + EKF_FX_FRAC - ATT_FX_CF > 62 && (c->inf & (1u << i)) == 0u) {
             att_fx_overflow(c, i);
         }
     }
@@ -312,12 +313,12 @@ int att_cov_floor_diag(att_cov_t *c, ekf_scalar_t floor)
         return -1;
     }
     for (i = 0; i < ATT_N; ++i) {
-        if (c->c[att_fx_ix[i][i]] < -ATT_FX_TOL) {
+        if (c->c[att_fx_dg[i]] < -ATT_FX_TOL) {
             return -1; /* negative beyond rounding */
         }
     }
     for (i = 0; i < ATT_N; ++i) {
-        int32_t *d = &c->c[att_fx_ix[i][i]];
+        int32_t *d = &c->c[att_fx_dg[i]];
         /* a variance below the band, or in a scale at most the floor's, can be below it */
         if (*d < ATT_FX_C_ONE || (floor > 0 && c->e[i] <= att_fx_norm_exp((uint64_t)floor, -EKF_FX_FRAC))) {
             if (*d < att_fx_floor_c(c, i, floor)) {
@@ -343,7 +344,7 @@ void att_cov_reset_state(att_cov_t *c, int i, ekf_scalar_t var)
     if (!ekf_fx_isfinite(var)) {
         c->inf = (uint16_t)(c->inf | (1u << i));
     } else if (var != 0) {
-        c->c[att_fx_ix[i][i]] = norm_q(var, &en);
+        c->c[att_fx_dg[i]] = norm_q(var, &en);
         if (en > ATT_FX_E_MAX) {
             att_fx_overflow(c, i);
             en = ATT_FX_E_MAX;
@@ -356,7 +357,7 @@ void att_cov_reset_state(att_cov_t *c, int i, ekf_scalar_t var)
  * (P_ii may be beyond the scalar's range there, between a propagation and its limits). */
 static int var_above(const att_cov_t *c, int i, ekf_scalar_t v)
 {
-    const int32_t d = c->c[att_fx_ix[i][i]];
+    const int32_t d = c->c[att_fx_dg[i]];
     const int sh = 2 * c->e[i] + EKF_FX_FRAC - ATT_FX_CF;
     const int ld = ekf_fx_bitlen64((uint64_t)(d > 0 ? d : 0)) + sh, lv = ekf_fx_bitlen64((uint64_t)v);
     if (d <= 0 || ld != lv) {
@@ -368,7 +369,7 @@ static int var_above(const att_cov_t *c, int i, ekf_scalar_t v)
 
 int att_cov_limit_variance(att_cov_t *c, int i, ekf_scalar_t max_var)
 {
-    int32_t *d = &c->c[att_fx_ix[i][i]];
+    int32_t *d = &c->c[att_fx_dg[i]];
     int32_t dn, g;
     int en, j;
     if ((c->inf & (1u << i)) != 0u || !(max_var > 0) || !var_above(c, i, max_var)) {
@@ -440,9 +441,9 @@ static int chol_pd(const att_cov_t *c, ekf_scalar_t rel_margin)
         for (m = 0, sum = 0; m < j; ++m) {
             sum += (int64_t)gj[m] * gj[m];
         }
-        acc = (((int64_t)c->c[att_fx_ix[j][j]] - att_fx_floor_c(c, j, ATT_COV_FX_TAU)) << ATT_FX_CF) - sum;
+        acc = (((int64_t)c->c[att_fx_dg[j]] - att_fx_floor_c(c, j, ATT_COV_FX_TAU)) << ATT_FX_CF) - sum;
         /* p_j 2^26 against rel C_jj 2^26 (the product Q0.32 x Q2.29 >> 35) */
-        if (acc <= 0 || (acc >> 32) < (int64_t)(((uint64_t)rel * (uint32_t)c->c[att_fx_ix[j][j]]) >> 35)) {
+        if (acc <= 0 || (acc >> 32) < (int64_t)(((uint64_t)rel * (uint32_t)c->c[att_fx_dg[j]]) >> 35)) {
             return 0;
         }
         /* acc = d 2^t, d in [2^30, 2^32), t even: 1/sqrt(p) = rsqrt(d) 2^-47 2^(29 - t/2) */
@@ -471,7 +472,7 @@ int att_cov_ensure_pd(att_cov_t *c, ekf_scalar_t rel_margin, ekf_scalar_t var_fl
         ++rounds;
         for (i = 0; i < ATT_N; ++i) {
             const int32_t f = att_fx_floor_c(c, i, var_floor);
-            int32_t *d = &c->c[att_fx_ix[i][i]];
+            int32_t *d = &c->c[att_fx_dg[i]];
             if (*d < f) {
                 *d = f;
             }
@@ -492,7 +493,7 @@ int att_cov_ensure_pd(att_cov_t *c, ekf_scalar_t rel_margin, ekf_scalar_t var_fl
         for (j = i + 1; j < ATT_N; ++j) {
             c->c[att_fx_ix[i][j]] = 0;
         }
-        if (c->c[att_fx_ix[i][i]] < att_fx_floor_c(c, i, var_floor)) {
+        if (c->c[att_fx_dg[i]] < att_fx_floor_c(c, i, var_floor)) {
             att_cov_reset_state(c, i, var_floor);
         }
         att_fx_renorm(c, i);

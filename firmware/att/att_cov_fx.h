@@ -25,6 +25,8 @@
 
 /* Packed index of (i, j) in att_cov_t.c (symmetric). */
 extern const uint8_t att_fx_ix[ATT_N][ATT_N];
+/* Packed index of (i, i): att_fx_ix[i][i] in one table load. */
+extern const uint8_t att_fx_dg[ATT_N];
 
 /* The few-instruction helpers of the kernels' inner loops are inlined even at -Os (a call
  * would cost more than their body on the Cortex-M3). */

@@ -156,7 +156,7 @@ static void propagate_factor(att_cov_t *c, const ekf_nz_t *pat, int nnz, const e
             att_fx_overflow(c, i);
             en[r] = ATT_FX_E_MAX;
         }
-        c->c[att_fx_ix[i][i]] = att_fx_to_c(v, -(x + ATT_FX_CF + 2 * (c->e[i] - en[r])));
+        c->c[att_fx_dg[i]] = att_fx_to_c(v, -(x + ATT_FX_CF + 2 * (c->e[i] - en[r])));
     }
     /* the rest of the changed rows, in the new scales: C'_il = c'_il 2^(29 + e_i + e_l - e'_i - e'_l) */
     for (r = 0; r < NR; ++r) {
@@ -414,7 +414,7 @@ static ekf_status_t update(att_cov_t *c, ekf_scalar_t x[ATT_N], const int32_t v[
     /* T = gamma v in Q2.30, the new variances c_ii - T_i v_i, the new state */
     for (i = 0; i < ATT_N; ++i) {
         T[i] = (int32_t)(((int64_t)v[i] * gamma30 + (1 << 28)) >> 29);
-        dg[i] = (int32_t)((uint32_t)c->c[att_fx_ix[i][i]] - (mul_hi_round(T[i], v[i]) << 2));
+        dg[i] = (int32_t)((uint32_t)c->c[att_fx_dg[i]] - (mul_hi_round(T[i], v[i]) << 2));
         if (i != k && dg[i] < -ATT_FX_TOL) {
             return EKF_ERR_NUMERIC; /* indefinite beyond rounding: no floor hides it */
         }
@@ -494,7 +494,7 @@ static ekf_status_t update(att_cov_t *c, ekf_scalar_t x[ATT_N], const int32_t v[
     /* the floor (a variance that can be below it: below the band, or in a scale at most the
      * floor's) and the band */
     for (i = 0; i < ATT_N; ++i) {
-        int32_t *d = &c->c[att_fx_ix[i][i]];
+        int32_t *d = &c->c[att_fx_dg[i]];
         if (*d < ATT_FX_C_ONE || c->e[i] <= ef) {
             const int32_t fl = att_fx_floor_c(c, i, var_floor);
             *d = (*d < fl) ? fl : *d;
