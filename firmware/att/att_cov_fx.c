@@ -9,7 +9,7 @@
  * and changes an exponent when a variance leaves the band (renormalisation: a row and
  * column shifted). The kernels for the propagation and the updates are in
  * att_cov_fx_kernels.c; this file holds the storage, the conversions, the small operations
- * and the definiteness guard.
+ * (the rate noise of the alignment too) and the definiteness guard.
  */
 #include "att_cov_fx.h"
 
@@ -230,7 +230,7 @@ void att_cov_from_full(att_cov_t *c, const ekf_scalar_t P[ATT_N * ATT_N])
     }
 }
 
-/* ---- prediction (the small operations; propagate and the rate noise: kernels) ---- */
+/* ---- prediction (the small operations and the rate noise; propagate: kernels) ---- */
 
 void att_cov_add_diag(att_cov_t *c, int first, int len, ekf_scalar_t var)
 {
@@ -282,6 +282,73 @@ void att_cov_scale_diag(att_cov_t *c, int first, int len, ekf_scalar_t rel)
             }
         }
         att_cov_add_var(c, i, ekf_mul(att_cov_var(c, i), rel));
+    }
+}
+
+/* ---- process noise of the body rates ---- */
+
+void att_cov_add_rate_noise(att_cov_t *c, const ekf_scalar_t g[9], const ekf_scalar_t var[3])
+{
+    /* P += G diag(var) G^T, G = [I; 0; g]: var_j = vm_j 2^xv, g_ij = gm_ij 2^xg (common
+     * scales), the increments as exact products, the new exponents from the new variances */
+    int64_t v64[ATT_N], g64[ATT_N];
+    int32_t vm[3], gm[9], t[9];
+    int64_t de[6]; /* the Euler-rate block's increments, (0,0) (0,1) (0,2) (1,1) (1,2) (2,2) */
+    int xv, xg, en[ATT_N], i, j, k, n;
+    for (i = 0; i < ATT_N; ++i) {
+        v64[i] = (i < 3) ? ((var[i] > 0) ? var[i] : 0) : 0;
+        g64[i] = g[i];
+    }
+    if (c->inf != 0u || (v64[0] | v64[1] | v64[2]) == 0) {
+        return;
+    }
+    xv = att_fx_block_row(v64, t) - EKF_FX_FRAC; /* (t: scratch for the 9-wide helper) */
+    for (i = 0; i < 3; ++i) {
+        vm[i] = t[i];
+    }
+    xg = att_fx_block_row(g64, gm) - EKF_FX_FRAC;
+    /* t_ij = g_ij var_j in Q(xg + xv + 30); the Euler block sum_j t_ij g_kj */
+    for (i = 0; i < 9; ++i) {
+        t[i] = att_fx_to_c((int64_t)gm[i] * vm[i % 3], 30);
+    }
+    for (i = 0, n = 0; i < 3; ++i) {
+        for (k = i; k < 3; ++k, ++n) {
+            de[n] = (int64_t)t[3 * i] * gm[3 * k] + (int64_t)t[3 * i + 1] * gm[3 * k + 1] + (int64_t)t[3 * i + 2] * gm[3 * k + 2];
+        }
+    }
+    /* new exponents of the rates and the Euler rates */
+    for (i = 0; i < ATT_N; ++i) {
+        en[i] = c->e[i];
+    }
+    for (j = 0; j < 3; ++j) {
+        const int ee = (vm[j] > 0) ? att_fx_sum_exp(c->c[att_fx_ix[j][j]], c->e[j], (uint64_t)vm[j], xv) : c->e[j];
+        const int64_t dd = de[(j == 0) ? 0 : (j == 1) ? 3 : 5];
+        const int ed = (dd > 0) ? att_fx_sum_exp(c->c[att_fx_ix[6 + j][6 + j]], c->e[6 + j], (uint64_t)dd, 2 * xg + xv + 30)
+                                : c->e[6 + j];
+        en[j] = (ee > c->e[j]) ? ee : c->e[j];
+        en[6 + j] = (ed > c->e[6 + j]) ? ed : c->e[6 + j];
+    }
+    for (i = 0; i < ATT_N; ++i) {
+        if (en[i] > ATT_FX_E_MAX) {
+            att_fx_overflow(c, i);
+            return;
+        }
+        att_fx_set_exp(c, i, en[i]);
+    }
+    /* the increments in the new scales: 2^(29 - e'_i - e'_j) */
+    for (j = 0; j < 3; ++j) {
+        int32_t *p = &c->c[att_fx_ix[j][j]];
+        *p = att_fx_to_c((int64_t)*p + att_fx_to_c(vm[j], -(xv + ATT_FX_CF - 2 * en[j])), 0);
+        for (i = 0; i < 3; ++i) {
+            p = &c->c[att_fx_ix[6 + i][j]];
+            *p = att_fx_to_c((int64_t)*p + att_fx_to_c((int64_t)gm[3 * i + j] * vm[j], -(xg + xv + ATT_FX_CF - en[6 + i] - en[j])), 0);
+        }
+    }
+    for (i = 0, n = 0; i < 3; ++i) {
+        for (k = i; k < 3; ++k, ++n) {
+            int32_t *p = &c->c[att_fx_ix[6 + i][6 + k]];
+            *p = att_fx_to_c((int64_t)*p + att_fx_to_c(de[n], -(2 * xg + xv + 30 + ATT_FX_CF - en[6 + i] - en[6 + k])), 0);
+        }
     }
 }
 

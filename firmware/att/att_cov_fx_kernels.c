@@ -1,8 +1,7 @@
 /*
  * att_cov_fx_kernels.c - the fixed-point covariance's heavy operations (att_cov.h,
  * ATT_COV_FX): the propagation F P F^T (one transition factor at a time) and the angle
- * increments' variance, the rate noise,
- * the scalar measurement updates (docs/fixed_point.md, "Covariance").
+ * increments' variance, the scalar measurement updates (docs/fixed_point.md, "Covariance").
  *
  * With P = S c S (S = diag(2^e_i), c = C 2^-29):
  *   F P F^T = S (F~ c F~^T) S, F~ = S^-1 F S: the scaled transition, one exponent per row;
@@ -36,18 +35,16 @@ ATT_FX_INLINE int64_t dot9(const int32_t *a, const int32_t *b)
            (int64_t)a[8] * b[8];
 }
 
-/* The words of a row of int64 values, with a common scale: w[j] = round(v[j] 2^-sh), sh
- * putting the largest magnitude below 2^bits (the OR of the magnitudes has its bit length).
- * Returns sh. */
-static int block_row(const int64_t *v, int32_t *w, int bits)
+int att_fx_block_row(const int64_t *v, int32_t *w)
 {
+    const int bits = 30;
     uint64_t m = 0u;
     int j, sh;
     for (j = 0; j < ATT_N; ++j) {
         m |= (v[j] < 0) ? (uint64_t)0 - (uint64_t)v[j] : (uint64_t)v[j];
     }
     sh = ekf_fx_bitlen64(m) - bits;
-    /* every |v_j| < 2^(sh + bits), bits <= 30: the rounded words stay within 2^30, so
+    /* every |v_j| < 2^(sh + bits): the rounded words stay within 2^30, so
      * att_fx_to_c's range checks are not needed (the same rounding: floor plus the last
      * bit shifted out) */
     if (sh >= 32) {
@@ -142,7 +139,7 @@ static void propagate_factor(att_cov_t *c, const ekf_nz_t *pat, int nnz, const e
         for (k = 0; k < ATT_N; ++k) {
             w[k] = dot9(f[r], cf[k]);
         }
-        al[r] = block_row(w, a[r], 30) + ph[r] - ATT_FX_CF;
+        al[r] = att_fx_block_row(w, a[r]) + ph[r] - ATT_FX_CF;
     }
     /* the new variances c'_rr = sum_m F~_rm A_rm and their exponents */
     for (r = 0; r < NR; ++r) {
@@ -164,7 +161,7 @@ static void propagate_factor(att_cov_t *c, const ekf_nz_t *pat, int nnz, const e
         const int sh = -(al[r] + ATT_FX_CF + di);
         const uint8_t *ix = att_fx_ix[i];
         if (sh <= 0 && sh >= -1) {
-            /* |A_rl| < 2^30 (block_row): a left shift by at most one bit stays within the word */
+            /* |A_rl| < 2^30 (att_fx_block_row): a left shift by at most one bit stays within the word */
             for (l = 0; l < ATT_N; ++l) { /* the rows F leaves: c'_il = A_il */
                 if (l < base || l >= base + NR) {
                     c->c[ix[l]] = (int32_t)((uint32_t)a[r][l] << -sh);
@@ -234,73 +231,6 @@ static void att_cov_increment_var(const att_cov_t *c, const ekf_scalar_t d[ATT_G
         }
         /* var = s 2^31 2^(2 (top - 62)) 2^-29, in Q29.34 */
         var[row - ATT_PHI] = (s > 0) ? att_fx_to_q(s, 88 - 2 * top) : EKF_C(0);
-    }
-}
-
-/* ---- process noise of the body rates ---- */
-
-void att_cov_add_rate_noise(att_cov_t *c, const ekf_scalar_t g[9], const ekf_scalar_t var[3])
-{
-    /* P += G diag(var) G^T, G = [I; 0; g]: var_j = vm_j 2^xv, g_ij = gm_ij 2^xg (common
-     * scales), the increments as exact products, the new exponents from the new variances */
-    int64_t v64[ATT_N], g64[ATT_N];
-    int32_t vm[3], gm[9], t[9];
-    int64_t de[6]; /* the Euler-rate block's increments, (0,0) (0,1) (0,2) (1,1) (1,2) (2,2) */
-    int xv, xg, en[ATT_N], i, j, k, n;
-    for (i = 0; i < ATT_N; ++i) {
-        v64[i] = (i < 3) ? ((var[i] > 0) ? var[i] : 0) : 0;
-        g64[i] = g[i];
-    }
-    if (c->inf != 0u || (v64[0] | v64[1] | v64[2]) == 0) {
-        return;
-    }
-    xv = block_row(v64, t, 30) - EKF_FX_FRAC; /* (t: scratch for the 9-wide helper) */
-    for (i = 0; i < 3; ++i) {
-        vm[i] = t[i];
-    }
-    xg = block_row(g64, gm, 30) - EKF_FX_FRAC;
-    /* t_ij = g_ij var_j in Q(xg + xv + 30); the Euler block sum_j t_ij g_kj */
-    for (i = 0; i < 9; ++i) {
-        t[i] = att_fx_to_c((int64_t)gm[i] * vm[i % 3], 30);
-    }
-    for (i = 0, n = 0; i < 3; ++i) {
-        for (k = i; k < 3; ++k, ++n) {
-            de[n] = (int64_t)t[3 * i] * gm[3 * k] + (int64_t)t[3 * i + 1] * gm[3 * k + 1] + (int64_t)t[3 * i + 2] * gm[3 * k + 2];
-        }
-    }
-    /* new exponents of the rates and the Euler rates */
-    for (i = 0; i < ATT_N; ++i) {
-        en[i] = c->e[i];
-    }
-    for (j = 0; j < 3; ++j) {
-        const int ee = (vm[j] > 0) ? att_fx_sum_exp(c->c[att_fx_ix[j][j]], c->e[j], (uint64_t)vm[j], xv) : c->e[j];
-        const int64_t dd = de[(j == 0) ? 0 : (j == 1) ? 3 : 5];
-        const int ed = (dd > 0) ? att_fx_sum_exp(c->c[att_fx_ix[6 + j][6 + j]], c->e[6 + j], (uint64_t)dd, 2 * xg + xv + 30)
-                                : c->e[6 + j];
-        en[j] = (ee > c->e[j]) ? ee : c->e[j];
-        en[6 + j] = (ed > c->e[6 + j]) ? ed : c->e[6 + j];
-    }
-    for (i = 0; i < ATT_N; ++i) {
-        if (en[i] > ATT_FX_E_MAX) {
-            att_fx_overflow(c, i);
-            return;
-        }
-        att_fx_set_exp(c, i, en[i]);
-    }
-    /* the increments in the new scales: 2^(29 - e'_i - e'_j) */
-    for (j = 0; j < 3; ++j) {
-        int32_t *p = &c->c[att_fx_ix[j][j]];
-        *p = att_fx_to_c((int64_t)*p + att_fx_to_c(vm[j], -(xv + ATT_FX_CF - 2 * en[j])), 0);
-        for (i = 0; i < 3; ++i) {
-            p = &c->c[att_fx_ix[6 + i][j]];
-            *p = att_fx_to_c((int64_t)*p + att_fx_to_c((int64_t)gm[3 * i + j] * vm[j], -(xg + xv + ATT_FX_CF - en[6 + i] - en[j])), 0);
-        }
-    }
-    for (i = 0, n = 0; i < 3; ++i) {
-        for (k = i; k < 3; ++k, ++n) {
-            int32_t *p = &c->c[att_fx_ix[6 + i][6 + k]];
-            *p = att_fx_to_c((int64_t)*p + att_fx_to_c(de[n], -(2 * xg + xv + 30 + ATT_FX_CF - en[6 + i] - en[6 + k])), 0);
-        }
     }
 }
 
