@@ -9,7 +9,7 @@
  * and changes an exponent when a variance leaves the band (renormalisation: a row and
  * column shifted). The kernels for the propagation and the updates are in
  * att_cov_fx_kernels.c; this file holds the storage, the conversions, the small operations
- * and the definiteness guard.
+ * (the rate noise of the alignment too) and the definiteness guard.
  */
 #include "att_cov_fx.h"
 
@@ -22,6 +22,7 @@ const uint8_t att_fx_ix[ATT_N][ATT_N] = {
     {6, 14, 21, 27, 32, 36, 39, 40, 41},  {7, 15, 22, 28, 33, 37, 40, 42, 43},
     {8, 16, 23, 29, 34, 38, 41, 43, 44},
 };
+const uint8_t att_fx_dg[ATT_N] = {0, 9, 17, 24, 30, 35, 39, 42, 44};
 
 /* ---- numeric helpers ---- */
 
@@ -86,6 +87,35 @@ void att_fx_set_exp(att_cov_t *c, int i, int en)
     if (k == 0) {
         return;
     }
+    if (k > 0 && k < 16) {
+        /* a larger scale (the common case): every word a rounded right shift, as below */
+        const uint8_t *ix = att_fx_ix[i];
+        for (j = 0; j < ATT_N; ++j) {
+            int32_t *p = &c->c[ix[j]];
+            const int kk = (j == i) ? 2 * k : k;
+            *p = (*p >> kk) + ((*p >> (kk - 1)) & 1);
+        }
+        c->e[i] = (int8_t)en;
+        return;
+    }
+    if (k < 0 && k > -15) {
+        /* a smaller scale (a variance back into the band): exact left shifts when every word
+         * of the row, the diagonal shifted twice as far, stays within the word */
+        const uint8_t *ix = att_fx_ix[i];
+        const int32_t d = c->c[ix[i]];
+        uint32_t m = 0u;
+        for (j = 0; j < ATT_N; ++j) {
+            const int32_t w = c->c[ix[j]];
+            m |= (uint32_t)(w ^ (w >> 31));
+        }
+        if ((m >> (31 + k)) == 0u && ((uint32_t)(d ^ (d >> 31)) >> (31 + 2 * k)) == 0u) {
+            for (j = 0; j < ATT_N; ++j) {
+                c->c[ix[j]] = (int32_t)((uint32_t)c->c[ix[j]] << ((j == i) ? -2 * k : -k));
+            }
+            c->e[i] = (int8_t)en;
+            return;
+        }
+    }
     for (j = 0; j < ATT_N; ++j) {
         int32_t *p = &c->c[att_fx_ix[i][j]];
         const int kk = (j == i) ? 2 * k : k;
@@ -102,7 +132,7 @@ void att_fx_set_exp(att_cov_t *c, int i, int en)
 
 void att_fx_renorm(att_cov_t *c, int i)
 {
-    const int32_t v = c->c[att_fx_ix[i][i]];
+    const int32_t v = c->c[att_fx_dg[i]];
     int en;
     if (v >= ATT_FX_C_ONE || v <= 0) {
         return;
@@ -200,7 +230,7 @@ void att_cov_from_full(att_cov_t *c, const ekf_scalar_t P[ATT_N * ATT_N])
     }
 }
 
-/* ---- prediction (the small operations; propagate and the rate noise: kernels) ---- */
+/* ---- prediction (the small operations and the rate noise; propagate: kernels) ---- */
 
 void att_cov_add_diag(att_cov_t *c, int first, int len, ekf_scalar_t var)
 {
@@ -212,7 +242,7 @@ void att_cov_add_diag(att_cov_t *c, int first, int len, ekf_scalar_t var)
 
 void att_cov_add_var(att_cov_t *c, int i, ekf_scalar_t var)
 {
-    int32_t *d = &c->c[att_fx_ix[i][i]];
+    int32_t *d = &c->c[att_fx_dg[i]];
     int64_t sum;
     if (var <= 0 || (c->inf & (1u << i)) != 0u) {
         return;
@@ -242,16 +272,83 @@ void att_cov_scale_diag(att_cov_t *c, int first, int len, ekf_scalar_t rel)
         return;
     }
     for (i = first; i < first + len; ++i) {
-        const int32_t d = c->c[att_fx_ix[i][i]];
+        const int32_t d = c->c[att_fx_dg[i]];
         if (d > 0 && rel < ((ekf_scalar_t)1 << 34)) {
             /* rel < 2^34 raw: d rel in one 32 x 32 product */
             const int64_t sum = (int64_t)d + (int64_t)(((uint64_t)(uint32_t)d * (uint32_t)(rel >> 2)) >> (EKF_FX_FRAC - 2));
             if (sum < INT32_MAX) {
-                c->c[att_fx_ix[i][i]] = (int32_t)sum;
+                c->c[att_fx_dg[i]] = (int32_t)sum;
                 continue;
             }
         }
         att_cov_add_var(c, i, ekf_mul(att_cov_var(c, i), rel));
+    }
+}
+
+/* ---- process noise of the body rates ---- */
+
+void att_cov_add_rate_noise(att_cov_t *c, const ekf_scalar_t g[9], const ekf_scalar_t var[3])
+{
+    /* P += G diag(var) G^T, G = [I; 0; g]: var_j = vm_j 2^xv, g_ij = gm_ij 2^xg (common
+     * scales), the increments as exact products, the new exponents from the new variances */
+    int64_t v64[ATT_N], g64[ATT_N];
+    int32_t vm[3], gm[9], t[9];
+    int64_t de[6]; /* the Euler-rate block's increments, (0,0) (0,1) (0,2) (1,1) (1,2) (2,2) */
+    int xv, xg, en[ATT_N], i, j, k, n;
+    for (i = 0; i < ATT_N; ++i) {
+        v64[i] = (i < 3) ? ((var[i] > 0) ? var[i] : 0) : 0;
+        g64[i] = g[i];
+    }
+    if (c->inf != 0u || (v64[0] | v64[1] | v64[2]) == 0) {
+        return;
+    }
+    xv = att_fx_block_row(v64, t) - EKF_FX_FRAC; /* (t: scratch for the 9-wide helper) */
+    for (i = 0; i < 3; ++i) {
+        vm[i] = t[i];
+    }
+    xg = att_fx_block_row(g64, gm) - EKF_FX_FRAC;
+    /* t_ij = g_ij var_j in Q(xg + xv + 30); the Euler block sum_j t_ij g_kj */
+    for (i = 0; i < 9; ++i) {
+        t[i] = att_fx_to_c((int64_t)gm[i] * vm[i % 3], 30);
+    }
+    for (i = 0, n = 0; i < 3; ++i) {
+        for (k = i; k < 3; ++k, ++n) {
+            de[n] = (int64_t)t[3 * i] * gm[3 * k] + (int64_t)t[3 * i + 1] * gm[3 * k + 1] + (int64_t)t[3 * i + 2] * gm[3 * k + 2];
+        }
+    }
+    /* new exponents of the rates and the Euler rates */
+    for (i = 0; i < ATT_N; ++i) {
+        en[i] = c->e[i];
+    }
+    for (j = 0; j < 3; ++j) {
+        const int ee = (vm[j] > 0) ? att_fx_sum_exp(c->c[att_fx_ix[j][j]], c->e[j], (uint64_t)vm[j], xv) : c->e[j];
+        const int64_t dd = de[(j == 0) ? 0 : (j == 1) ? 3 : 5];
+        const int ed = (dd > 0) ? att_fx_sum_exp(c->c[att_fx_ix[6 + j][6 + j]], c->e[6 + j], (uint64_t)dd, 2 * xg + xv + 30)
+                                : c->e[6 + j];
+        en[j] = (ee > c->e[j]) ? ee : c->e[j];
+        en[6 + j] = (ed > c->e[6 + j]) ? ed : c->e[6 + j];
+    }
+    for (i = 0; i < ATT_N; ++i) {
+        if (en[i] > ATT_FX_E_MAX) {
+            att_fx_overflow(c, i);
+            return;
+        }
+        att_fx_set_exp(c, i, en[i]);
+    }
+    /* the increments in the new scales: 2^(29 - e'_i - e'_j) */
+    for (j = 0; j < 3; ++j) {
+        int32_t *p = &c->c[att_fx_ix[j][j]];
+        *p = att_fx_to_c((int64_t)*p + att_fx_to_c(vm[j], -(xv + ATT_FX_CF - 2 * en[j])), 0);
+        for (i = 0; i < 3; ++i) {
+            p = &c->c[att_fx_ix[6 + i][j]];
+            *p = att_fx_to_c((int64_t)*p + att_fx_to_c((int64_t)gm[3 * i + j] * vm[j], -(xg + xv + ATT_FX_CF - en[6 + i] - en[j])), 0);
+        }
+    }
+    for (i = 0, n = 0; i < 3; ++i) {
+        for (k = i; k < 3; ++k, ++n) {
+            int32_t *p = &c->c[att_fx_ix[6 + i][6 + k]];
+            *p = att_fx_to_c((int64_t)*p + att_fx_to_c(de[n], -(2 * xg + xv + 30 + ATT_FX_CF - en[6 + i] - en[6 + k])), 0);
+        }
     }
 }
 
@@ -275,7 +372,7 @@ int att_cov_floor_diag(att_cov_t *c, ekf_scalar_t floor)
     for (i = 0; i < ATT_N; ++i) {
         /* a variance beyond the scalar's range: an overflow of the covariance the filter can
          * report (counted, infinite) */
-        if (att_fx_abslen(c->c[att_fx_ix[i][i]]) + 2 * c->e[i] + EKF_FX_FRAC - ATT_FX_CF > 62 && (c->inf & (1u << i)) == 0u) {
+        if (att_fx_abslen(c->c[att_fx_dg[i]]) + 2 * c->e[i] + EKF_FX_FRAC - ATT_FX_CF > 62 && (c->inf & (1u << i)) == 0u) {
             att_fx_overflow(c, i);
         }
     }
@@ -283,12 +380,12 @@ int att_cov_floor_diag(att_cov_t *c, ekf_scalar_t floor)
         return -1;
     }
     for (i = 0; i < ATT_N; ++i) {
-        if (c->c[att_fx_ix[i][i]] < -ATT_FX_TOL) {
+        if (c->c[att_fx_dg[i]] < -ATT_FX_TOL) {
             return -1; /* negative beyond rounding */
         }
     }
     for (i = 0; i < ATT_N; ++i) {
-        int32_t *d = &c->c[att_fx_ix[i][i]];
+        int32_t *d = &c->c[att_fx_dg[i]];
         /* a variance below the band, or in a scale at most the floor's, can be below it */
         if (*d < ATT_FX_C_ONE || (floor > 0 && c->e[i] <= att_fx_norm_exp((uint64_t)floor, -EKF_FX_FRAC))) {
             if (*d < att_fx_floor_c(c, i, floor)) {
@@ -314,7 +411,7 @@ void att_cov_reset_state(att_cov_t *c, int i, ekf_scalar_t var)
     if (!ekf_fx_isfinite(var)) {
         c->inf = (uint16_t)(c->inf | (1u << i));
     } else if (var != 0) {
-        c->c[att_fx_ix[i][i]] = norm_q(var, &en);
+        c->c[att_fx_dg[i]] = norm_q(var, &en);
         if (en > ATT_FX_E_MAX) {
             att_fx_overflow(c, i);
             en = ATT_FX_E_MAX;
@@ -327,7 +424,7 @@ void att_cov_reset_state(att_cov_t *c, int i, ekf_scalar_t var)
  * (P_ii may be beyond the scalar's range there, between a propagation and its limits). */
 static int var_above(const att_cov_t *c, int i, ekf_scalar_t v)
 {
-    const int32_t d = c->c[att_fx_ix[i][i]];
+    const int32_t d = c->c[att_fx_dg[i]];
     const int sh = 2 * c->e[i] + EKF_FX_FRAC - ATT_FX_CF;
     const int ld = ekf_fx_bitlen64((uint64_t)(d > 0 ? d : 0)) + sh, lv = ekf_fx_bitlen64((uint64_t)v);
     if (d <= 0 || ld != lv) {
@@ -339,7 +436,7 @@ static int var_above(const att_cov_t *c, int i, ekf_scalar_t v)
 
 int att_cov_limit_variance(att_cov_t *c, int i, ekf_scalar_t max_var)
 {
-    int32_t *d = &c->c[att_fx_ix[i][i]];
+    int32_t *d = &c->c[att_fx_dg[i]];
     int32_t dn, g;
     int en, j;
     if ((c->inf & (1u << i)) != 0u || !(max_var > 0) || !var_above(c, i, max_var)) {
@@ -411,9 +508,9 @@ static int chol_pd(const att_cov_t *c, ekf_scalar_t rel_margin)
         for (m = 0, sum = 0; m < j; ++m) {
             sum += (int64_t)gj[m] * gj[m];
         }
-        acc = (((int64_t)c->c[att_fx_ix[j][j]] - att_fx_floor_c(c, j, ATT_COV_FX_TAU)) << ATT_FX_CF) - sum;
+        acc = (((int64_t)c->c[att_fx_dg[j]] - att_fx_floor_c(c, j, ATT_COV_FX_TAU)) << ATT_FX_CF) - sum;
         /* p_j 2^26 against rel C_jj 2^26 (the product Q0.32 x Q2.29 >> 35) */
-        if (acc <= 0 || (acc >> 32) < (int64_t)(((uint64_t)rel * (uint32_t)c->c[att_fx_ix[j][j]]) >> 35)) {
+        if (acc <= 0 || (acc >> 32) < (int64_t)(((uint64_t)rel * (uint32_t)c->c[att_fx_dg[j]]) >> 35)) {
             return 0;
         }
         /* acc = d 2^t, d in [2^30, 2^32), t even: 1/sqrt(p) = rsqrt(d) 2^-47 2^(29 - t/2) */
@@ -442,7 +539,7 @@ int att_cov_ensure_pd(att_cov_t *c, ekf_scalar_t rel_margin, ekf_scalar_t var_fl
         ++rounds;
         for (i = 0; i < ATT_N; ++i) {
             const int32_t f = att_fx_floor_c(c, i, var_floor);
-            int32_t *d = &c->c[att_fx_ix[i][i]];
+            int32_t *d = &c->c[att_fx_dg[i]];
             if (*d < f) {
                 *d = f;
             }
@@ -463,7 +560,7 @@ int att_cov_ensure_pd(att_cov_t *c, ekf_scalar_t rel_margin, ekf_scalar_t var_fl
         for (j = i + 1; j < ATT_N; ++j) {
             c->c[att_fx_ix[i][j]] = 0;
         }
-        if (c->c[att_fx_ix[i][i]] < att_fx_floor_c(c, i, var_floor)) {
+        if (c->c[att_fx_dg[i]] < att_fx_floor_c(c, i, var_floor)) {
             att_cov_reset_state(c, i, var_floor);
         }
         att_fx_renorm(c, i);

@@ -25,6 +25,8 @@
 
 /* Packed index of (i, j) in att_cov_t.c (symmetric). */
 extern const uint8_t att_fx_ix[ATT_N][ATT_N];
+/* Packed index of (i, i): att_fx_ix[i][i] in one table load. */
+extern const uint8_t att_fx_dg[ATT_N];
 
 /* The few-instruction helpers of the kernels' inner loops are inlined even at -Os (a call
  * would cost more than their body on the Cortex-M3). */
@@ -102,6 +104,10 @@ void att_fx_renorm(att_cov_t *c, int i);
 int32_t att_fx_floor_c(const att_cov_t *c, int i, ekf_scalar_t floor);
 /* State i's variance overflowed: infinite, one saturation counted. */
 void att_fx_overflow(att_cov_t *c, int i);
+/* The words of a row of nine int64 values, with a common scale: w[j] = round(v[j] 2^-sh), sh
+ * putting the largest magnitude below 2^30 (the OR of the magnitudes has its bit length).
+ * Returns sh. */
+int att_fx_block_row(const int64_t *v, int32_t *w);
 
 #endif /* ATT_COV_FX */
 

@@ -1,8 +1,7 @@
 /*
  * att_cov_fx_kernels.c - the fixed-point covariance's heavy operations (att_cov.h,
  * ATT_COV_FX): the propagation F P F^T (one transition factor at a time) and the angle
- * increments' variance, the rate noise,
- * the scalar measurement updates (docs/fixed_point.md, "Covariance").
+ * increments' variance, the scalar measurement updates (docs/fixed_point.md, "Covariance").
  *
  * With P = S c S (S = diag(2^e_i), c = C 2^-29):
  *   F P F^T = S (F~ c F~^T) S, F~ = S^-1 F S: the scaled transition, one exponent per row;
@@ -20,7 +19,13 @@
 
 #include "ekf_util.h"
 
-#define HALF32 ((int64_t)1 << 31)
+/* round(a b 2^-32) of two words: the product's high word plus the top bit of its low word
+ * (the same as (a b + 2^31) >> 32, without the rounding constant in the accumulator). */
+ATT_FX_INLINE uint32_t mul_hi_round(int32_t a, int32_t b)
+{
+    const int64_t p = (int64_t)a * b;
+    return (uint32_t)(int32_t)(p >> 32) + ((uint32_t)p >> 31);
+}
 
 /* Dot product of two 9-vectors of words, exact (nine multiply-accumulates). */
 ATT_FX_INLINE int64_t dot9(const int32_t *a, const int32_t *b)
@@ -30,19 +35,34 @@ ATT_FX_INLINE int64_t dot9(const int32_t *a, const int32_t *b)
            (int64_t)a[8] * b[8];
 }
 
-/* The words of a row of int64 values, with a common scale: w[j] = round(v[j] 2^-sh), sh
- * putting the largest magnitude below 2^bits (the OR of the magnitudes has its bit length).
- * Returns sh. */
-static int block_row(const int64_t *v, int32_t *w, int bits)
+int att_fx_block_row(const int64_t *v, int32_t *w)
 {
+    const int bits = 30;
     uint64_t m = 0u;
     int j, sh;
     for (j = 0; j < ATT_N; ++j) {
         m |= (v[j] < 0) ? (uint64_t)0 - (uint64_t)v[j] : (uint64_t)v[j];
     }
     sh = ekf_fx_bitlen64(m) - bits;
-    for (j = 0; j < ATT_N; ++j) {
-        w[j] = att_fx_to_c(v[j], sh);
+    /* every |v_j| < 2^(sh + bits): the rounded words stay within 2^30, so
+     * att_fx_to_c's range checks are not needed (the same rounding: floor plus the last
+     * bit shifted out) */
+    if (sh >= 32) {
+        const int k = sh - 32;
+        for (j = 0; j < ATT_N; ++j) {
+            const int32_t hi = (int32_t)(v[j] >> 32);
+            w[j] = (hi >> k) + (int32_t)((k > 0) ? ((uint32_t)hi >> (k - 1)) & 1u : (uint32_t)v[j] >> 31);
+        }
+    } else if (sh > 0) {
+        for (j = 0; j < ATT_N; ++j) {
+            const int32_t hi = (int32_t)(v[j] >> 32);
+            const uint32_t lo = (uint32_t)v[j];
+            w[j] = (int32_t)((lo >> sh) | ((uint32_t)hi << (32 - sh))) + (int32_t)((lo >> (sh - 1)) & 1u);
+        }
+    } else {
+        for (j = 0; j < ATT_N; ++j) {
+            w[j] = (int32_t)((uint32_t)v[j] << -sh);
+        }
     }
     return sh;
 }
@@ -63,32 +83,31 @@ static void scaled_rows(const att_cov_t *c, const ekf_nz_t *pat, int nnz, const 
     for (r = 0; r < NR; ++r) {
         const int row = base + r, k0 = k;
         ekf_scalar_t diag = EKF_FX_ONE;
-        int top, j, kend;
+        int top = INT32_MIN, b, j, kend;
+        int32_t *fr = f[r];
         for (j = 0; j < ATT_N; ++j) {
-            f[r][j] = 0;
+            fr[j] = 0;
         }
-        for (; k < nnz && pat[k].row == row; ++k) {
-            if (pat[k].col == row) {
-                diag += d[k];
-            }
-        }
-        kend = k;
         /* F~_rj = F_rj 2^(e_j - e_r) 2^-34: the row's largest bit length with the exponents */
-        top = att_fx_abslen(diag) + c->e[row];
-        for (k = k0; k < kend; ++k) {
+        for (; k < nnz && pat[k].row == row; ++k) {
             const int col = pat[k].col;
-            if (col != row && d[k] != 0) {
-                const int b = att_fx_abslen(d[k]) + c->e[col];
+            if (col == row) {
+                diag += d[k];
+            } else if (d[k] != 0) {
+                b = att_fx_abslen(d[k]) + c->e[col];
                 top = (b > top) ? b : top;
             }
         }
+        kend = k;
+        b = att_fx_abslen(diag) + c->e[row];
+        top = (b > top) ? b : top;
         for (k = k0; k < kend; ++k) {
             const int col = pat[k].col;
-            if (col != row) {
-                f[r][col] = att_fx_to_c(d[k], top - 28 - c->e[col]);
+            if (col != row && d[k] != 0) {
+                fr[col] = att_fx_to_c(d[k], top - 28 - c->e[col]);
             }
         }
-        f[r][row] = att_fx_to_c(diag, top - 28 - c->e[row]);
+        fr[row] = att_fx_to_c(diag, top - 28 - c->e[row]);
         ph[r] = top - 28 - EKF_FX_FRAC - c->e[row];
     }
 }
@@ -120,7 +139,7 @@ static void propagate_factor(att_cov_t *c, const ekf_nz_t *pat, int nnz, const e
         for (k = 0; k < ATT_N; ++k) {
             w[k] = dot9(f[r], cf[k]);
         }
-        al[r] = block_row(w, a[r], 30) + ph[r] - ATT_FX_CF;
+        al[r] = att_fx_block_row(w, a[r]) + ph[r] - ATT_FX_CF;
     }
     /* the new variances c'_rr = sum_m F~_rm A_rm and their exponents */
     for (r = 0; r < NR; ++r) {
@@ -134,14 +153,31 @@ static void propagate_factor(att_cov_t *c, const ekf_nz_t *pat, int nnz, const e
             att_fx_overflow(c, i);
             en[r] = ATT_FX_E_MAX;
         }
-        c->c[att_fx_ix[i][i]] = att_fx_to_c(v, -(x + ATT_FX_CF + 2 * (c->e[i] - en[r])));
+        c->c[att_fx_dg[i]] = att_fx_to_c(v, -(x + ATT_FX_CF + 2 * (c->e[i] - en[r])));
     }
     /* the rest of the changed rows, in the new scales: C'_il = c'_il 2^(29 + e_i + e_l - e'_i - e'_l) */
     for (r = 0; r < NR; ++r) {
         const int i = base + r, di = c->e[i] - en[r];
-        for (l = 0; l < ATT_N; ++l) { /* the rows F leaves: c'_il = A_il */
-            if (l < base || l >= base + NR) {
-                c->c[att_fx_ix[i][l]] = att_fx_w(a[r][l], -(al[r] + ATT_FX_CF + di));
+        const int sh = -(al[r] + ATT_FX_CF + di);
+        const uint8_t *ix = att_fx_ix[i];
+        if (sh <= 0 && sh >= -1) {
+            /* |A_rl| < 2^30 (att_fx_block_row): a left shift by at most one bit stays within the word */
+            for (l = 0; l < ATT_N; ++l) { /* the rows F leaves: c'_il = A_il */
+                if (l < base || l >= base + NR) {
+                    c->c[ix[l]] = (int32_t)((uint32_t)a[r][l] << -sh);
+                }
+            }
+        } else if (sh > 0 && sh < 32) {
+            for (l = 0; l < ATT_N; ++l) {
+                if (l < base || l >= base + NR) {
+                    c->c[ix[l]] = (a[r][l] >> sh) + ((a[r][l] >> (sh - 1)) & 1);
+                }
+            }
+        } else {
+            for (l = 0; l < ATT_N; ++l) {
+                if (l < base || l >= base + NR) {
+                    c->c[ix[l]] = att_fx_w(a[r][l], sh);
+                }
             }
         }
         for (l = r + 1; l < NR; ++l) {
@@ -195,73 +231,6 @@ static void att_cov_increment_var(const att_cov_t *c, const ekf_scalar_t d[ATT_G
         }
         /* var = s 2^31 2^(2 (top - 62)) 2^-29, in Q29.34 */
         var[row - ATT_PHI] = (s > 0) ? att_fx_to_q(s, 88 - 2 * top) : EKF_C(0);
-    }
-}
-
-/* ---- process noise of the body rates ---- */
-
-void att_cov_add_rate_noise(att_cov_t *c, const ekf_scalar_t g[9], const ekf_scalar_t var[3])
-{
-    /* P += G diag(var) G^T, G = [I; 0; g]: var_j = vm_j 2^xv, g_ij = gm_ij 2^xg (common
-     * scales), the increments as exact products, the new exponents from the new variances */
-    int64_t v64[ATT_N], g64[ATT_N];
-    int32_t vm[3], gm[9], t[9];
-    int64_t de[6]; /* the Euler-rate block's increments, (0,0) (0,1) (0,2) (1,1) (1,2) (2,2) */
-    int xv, xg, en[ATT_N], i, j, k, n;
-    for (i = 0; i < ATT_N; ++i) {
-        v64[i] = (i < 3) ? ((var[i] > 0) ? var[i] : 0) : 0;
-        g64[i] = g[i];
-    }
-    if (c->inf != 0u || (v64[0] | v64[1] | v64[2]) == 0) {
-        return;
-    }
-    xv = block_row(v64, t, 30) - EKF_FX_FRAC; /* (t: scratch for the 9-wide helper) */
-    for (i = 0; i < 3; ++i) {
-        vm[i] = t[i];
-    }
-    xg = block_row(g64, gm, 30) - EKF_FX_FRAC;
-    /* t_ij = g_ij var_j in Q(xg + xv + 30); the Euler block sum_j t_ij g_kj */
-    for (i = 0; i < 9; ++i) {
-        t[i] = att_fx_to_c((int64_t)gm[i] * vm[i % 3], 30);
-    }
-    for (i = 0, n = 0; i < 3; ++i) {
-        for (k = i; k < 3; ++k, ++n) {
-            de[n] = (int64_t)t[3 * i] * gm[3 * k] + (int64_t)t[3 * i + 1] * gm[3 * k + 1] + (int64_t)t[3 * i + 2] * gm[3 * k + 2];
-        }
-    }
-    /* new exponents of the rates and the Euler rates */
-    for (i = 0; i < ATT_N; ++i) {
-        en[i] = c->e[i];
-    }
-    for (j = 0; j < 3; ++j) {
-        const int ee = (vm[j] > 0) ? att_fx_sum_exp(c->c[att_fx_ix[j][j]], c->e[j], (uint64_t)vm[j], xv) : c->e[j];
-        const int64_t dd = de[(j == 0) ? 0 : (j == 1) ? 3 : 5];
-        const int ed = (dd > 0) ? att_fx_sum_exp(c->c[att_fx_ix[6 + j][6 + j]], c->e[6 + j], (uint64_t)dd, 2 * xg + xv + 30)
-                                : c->e[6 + j];
-        en[j] = (ee > c->e[j]) ? ee : c->e[j];
-        en[6 + j] = (ed > c->e[6 + j]) ? ed : c->e[6 + j];
-    }
-    for (i = 0; i < ATT_N; ++i) {
-        if (en[i] > ATT_FX_E_MAX) {
-            att_fx_overflow(c, i);
-            return;
-        }
-        att_fx_set_exp(c, i, en[i]);
-    }
-    /* the increments in the new scales: 2^(29 - e'_i - e'_j) */
-    for (j = 0; j < 3; ++j) {
-        int32_t *p = &c->c[att_fx_ix[j][j]];
-        *p = att_fx_to_c((int64_t)*p + att_fx_to_c(vm[j], -(xv + ATT_FX_CF - 2 * en[j])), 0);
-        for (i = 0; i < 3; ++i) {
-            p = &c->c[att_fx_ix[6 + i][j]];
-            *p = att_fx_to_c((int64_t)*p + att_fx_to_c((int64_t)gm[3 * i + j] * vm[j], -(xg + xv + ATT_FX_CF - en[6 + i] - en[j])), 0);
-        }
-    }
-    for (i = 0, n = 0; i < 3; ++i) {
-        for (k = i; k < 3; ++k, ++n) {
-            int32_t *p = &c->c[att_fx_ix[6 + i][6 + k]];
-            *p = att_fx_to_c((int64_t)*p + att_fx_to_c(de[n], -(2 * xg + xv + 30 + ATT_FX_CF - en[6 + i] - en[6 + k])), 0);
-        }
     }
 }
 
@@ -375,7 +344,7 @@ static ekf_status_t update(att_cov_t *c, ekf_scalar_t x[ATT_N], const int32_t v[
     /* T = gamma v in Q2.30, the new variances c_ii - T_i v_i, the new state */
     for (i = 0; i < ATT_N; ++i) {
         T[i] = (int32_t)(((int64_t)v[i] * gamma30 + (1 << 28)) >> 29);
-        dg[i] = (int32_t)((uint32_t)c->c[att_fx_ix[i][i]] - ((uint32_t)(((int64_t)T[i] * v[i] + HALF32) >> 32) << 2));
+        dg[i] = (int32_t)((uint32_t)c->c[att_fx_dg[i]] - (mul_hi_round(T[i], v[i]) << 2));
         if (i != k && dg[i] < -ATT_FX_TOL) {
             return EKF_ERR_NUMERIC; /* indefinite beyond rounding: no floor hides it */
         }
@@ -391,9 +360,17 @@ static ekf_status_t update(att_cov_t *c, ekf_scalar_t x[ATT_N], const int32_t v[
         for (i = 0; i < ATT_N; ++i) {
             const int sh = -(base + ((i == k) ? eta : c->e[i]));
             const int64_t p = (int64_t)v[i] * wv;
-            const ekf_scalar_t dx = (sh > 0 && sh < 63) ? att_fx_shr(p, sh) : att_fx_to_q(p, sh);
-            xn[i] = ekf_fx_add(x[i], dx);
-            bad = ekf_finite_acc(bad, xn[i]);
+            const int32_t ph = (int32_t)(p >> 32);
+            if (sh > 32 && sh < 63 && (uint32_t)ekf_fx_hi(x[i]) + 0x20000000u < 0x40000000u) {
+                /* the common case: the correction from the product's high word (|dx| < 2^31)
+                 * and |x_i| < 2^61, so the sum is finite and exact (att_fx_shr's rounding) */
+                const int32_t dx = (ph >> (sh - 32)) + ((ph >> (sh - 33)) & 1);
+                xn[i] = (ekf_scalar_t)((uint64_t)x[i] + (uint64_t)(int64_t)dx);
+            } else {
+                const ekf_scalar_t dx = (sh > 0 && sh < 63) ? att_fx_shr(p, sh) : att_fx_to_q(p, sh);
+                xn[i] = ekf_fx_add(x[i], dx);
+                bad = ekf_finite_acc(bad, xn[i]);
+            }
         }
         if (!(bad == EKF_C(0))) {
             return EKF_ERR_NUMERIC;
@@ -411,7 +388,7 @@ static ekf_status_t update(att_cov_t *c, ekf_scalar_t x[ATT_N], const int32_t v[
             x[i] = xn[i];
             *p++ = dg[i];
             for (j = i + 1; j < ATT_N; ++j) {
-                *p = (int32_t)((uint32_t)*p - ((uint32_t)(((int64_t)ti * *vj++ + HALF32) >> 32) << 2));
+                *p = (int32_t)((uint32_t)*p - (mul_hi_round(ti, *vj++) << 2));
                 ++p;
             }
         }
@@ -422,21 +399,32 @@ static ekf_status_t update(att_cov_t *c, ekf_scalar_t x[ATT_N], const int32_t v[
          * scale where c'_kk is in the band, or the floor's if the floor is larger */
         const int bq = ekf_fx_bitlen64((uint64_t)r_var);
         const uint32_t rm = (uint32_t)((bq >= 32) ? (uint64_t)r_var >> (bq - 32) : (uint64_t)r_var << (32 - bq));
-        const int64_t rho = (int64_t)(((uint64_t)rm * gm) >> 33); /* < 2^31 */
+        const int32_t rho = (int32_t)((uint32_t)(((uint64_t)rm * gm) >> 32) >> 1); /* < 2^31 */
         const int xr = bq - 96 - 2 * eta - xs;                   /* rho (real) = rho 2^xr */
         const int64_t pk = (int64_t)v[k] * rho;                     /* c'_kk = pk 2^(xr - 29) */
         int ek = (pk <= 0) ? ATT_FX_E_MIN : att_fx_norm_exp((uint64_t)pk, xr - ATT_FX_CF + 2 * eta);
         ek = (ef > ek) ? ef : ek;
         ek = (ek < ATT_FX_E_MIN) ? ATT_FX_E_MIN : ek;
-        for (i = 0; i < ATT_N; ++i) {
-            c->c[att_fx_ix[i][k]] = att_fx_to_c((int64_t)v[i] * rho, -(xr + ((i == k) ? 2 : 1) * (eta - ek)));
+        const int s1 = -(xr + eta - ek); /* the shift of c'_ik, i != k */
+        const uint8_t *ix = att_fx_ix[k];
+        if (s1 > 32 && s1 < 63) {
+            /* from the product's high word (att_fx_to_c's rounding; |result| < 2^30) */
+            for (i = 0; i < ATT_N; ++i) {
+                const int32_t h = (int32_t)(((int64_t)v[i] * rho) >> 32);
+                c->c[ix[i]] = (h >> (s1 - 32)) + ((h >> (s1 - 33)) & 1);
+            }
+        } else {
+            for (i = 0; i < ATT_N; ++i) {
+                c->c[ix[i]] = att_fx_to_c((int64_t)v[i] * rho, s1);
+            }
         }
+        c->c[ix[k]] = att_fx_to_c(pk, -(xr + 2 * (eta - ek)));
         c->e[k] = (int8_t)ek;
     }
     /* the floor (a variance that can be below it: below the band, or in a scale at most the
      * floor's) and the band */
     for (i = 0; i < ATT_N; ++i) {
-        int32_t *d = &c->c[att_fx_ix[i][i]];
+        int32_t *d = &c->c[att_fx_dg[i]];
         if (*d < ATT_FX_C_ONE || c->e[i] <= ef) {
             const int32_t fl = att_fx_floor_c(c, i, var_floor);
             *d = (*d < fl) ? fl : *d;
