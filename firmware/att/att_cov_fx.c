@@ -366,6 +366,23 @@ int32_t att_fx_floor_c(const att_cov_t *c, int i, ekf_scalar_t floor)
     return att_fx_to_c(floor, sh);
 }
 
+/* 1 if P_ii is below floor. att_fx_floor_c saturates to INT32_MAX when the floor does not
+ * fit a word of state i's scale; every word is then at most the floor. */
+static int below_floor(const att_cov_t *c, int i, ekf_scalar_t floor)
+{
+    const int32_t f = att_fx_floor_c(c, i, floor);
+    return c->c[att_fx_dg[i]] < f || f == INT32_MAX;
+}
+
+/* P_ii <- floor, in the floor's own scale (the row and column rescaled with it). */
+static void set_to_floor(att_cov_t *c, int i, ekf_scalar_t floor)
+{
+    int en;
+    const int32_t v = norm_q(floor, &en);
+    att_fx_set_exp(c, i, en);
+    c->c[att_fx_dg[i]] = v;
+}
+
 int att_cov_floor_diag(att_cov_t *c, ekf_scalar_t floor)
 {
     int i;
@@ -388,11 +405,8 @@ int att_cov_floor_diag(att_cov_t *c, ekf_scalar_t floor)
         int32_t *d = &c->c[att_fx_dg[i]];
         /* a variance below the band, or in a scale at most the floor's, can be below it */
         if (*d < ATT_FX_C_ONE || (floor > 0 && c->e[i] <= att_fx_norm_exp((uint64_t)floor, -EKF_FX_FRAC))) {
-            if (*d < att_fx_floor_c(c, i, floor)) {
-                int en;
-                const int32_t v = norm_q(floor, &en);
-                att_fx_set_exp(c, i, en);
-                *d = v;
+            if (below_floor(c, i, floor)) {
+                set_to_floor(c, i, floor);
             } else {
                 att_fx_renorm(c, i);
             }
@@ -502,13 +516,13 @@ static int chol_pd(const att_cov_t *c, ekf_scalar_t rel_margin)
             for (m = 0, sum = 0; m < k; ++m) {
                 sum += (int64_t)gj[m] * gk[m];
             }
-            acc = ((int64_t)c->c[att_fx_ix[j][k]] << ATT_FX_CF) - sum; /* Q4.58 */
+            acc = (int64_t)c->c[att_fx_ix[j][k]] * ((int64_t)1 << ATT_FX_CF) - sum; /* Q4.58 (times 2^CF: a left shift of a negative value is undefined) */
             gj[k] = att_fx_to_c(mul_hi(acc, rs[k]), sh[k]);
         }
         for (m = 0, sum = 0; m < j; ++m) {
             sum += (int64_t)gj[m] * gj[m];
         }
-        acc = (((int64_t)c->c[att_fx_dg[j]] - att_fx_floor_c(c, j, ATT_COV_FX_TAU)) << ATT_FX_CF) - sum;
+        acc = ((int64_t)c->c[att_fx_dg[j]] - att_fx_floor_c(c, j, ATT_COV_FX_TAU)) * ((int64_t)1 << ATT_FX_CF) - sum;
         /* p_j 2^26 against rel C_jj 2^26 (the product Q0.32 x Q2.29 >> 35) */
         if (acc <= 0 || (acc >> 32) < (int64_t)(((uint64_t)rel * (uint32_t)c->c[att_fx_dg[j]]) >> 35)) {
             return 0;
@@ -540,7 +554,9 @@ int att_cov_ensure_pd(att_cov_t *c, ekf_scalar_t rel_margin, ekf_scalar_t var_fl
         for (i = 0; i < ATT_N; ++i) {
             const int32_t f = att_fx_floor_c(c, i, var_floor);
             int32_t *d = &c->c[att_fx_dg[i]];
-            if (*d < f) {
+            if (f == INT32_MAX) { /* the floor does not fit this scale's word */
+                set_to_floor(c, i, var_floor);
+            } else if (*d < f) {
                 *d = f;
             }
             att_fx_renorm(c, i);
@@ -560,7 +576,7 @@ int att_cov_ensure_pd(att_cov_t *c, ekf_scalar_t rel_margin, ekf_scalar_t var_fl
         for (j = i + 1; j < ATT_N; ++j) {
             c->c[att_fx_ix[i][j]] = 0;
         }
-        if (c->c[att_fx_dg[i]] < att_fx_floor_c(c, i, var_floor)) {
+        if (below_floor(c, i, var_floor)) {
             att_cov_reset_state(c, i, var_floor);
         }
         att_fx_renorm(c, i);

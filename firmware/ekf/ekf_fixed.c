@@ -361,12 +361,12 @@ void ekf_fx_sincos(ekf_fx_t a, ekf_fx_t *s_out, ekf_fx_t *c_out)
         p = k_sin[k] + mulq31(p, u);
     }
     /* the linear term exact, the correction r u S(u) (|.| < 0.081) in Q0.31 */
-    s = r + ((ekf_fx_t)mulq31(r31, mulq31(u, p)) << (FRAC - 31));
+    s = r + (ekf_fx_t)mulq31(r31, mulq31(u, p)) * ((ekf_fx_t)1 << (FRAC - 31)); /* a negative value times 2^k: no left shift of it (undefined) */
     p = k_cos[0];
     for (k = 1; k < 5; ++k) {
         p = k_cos[k] + mulq31(p, u);
     }
-    c = EKF_FX_ONE + ((ekf_fx_t)mulq31(u, p) << (FRAC - 31));
+    c = EKF_FX_ONE + (ekf_fx_t)mulq31(u, p) * ((ekf_fx_t)1 << (FRAC - 31));
     switch (n & 3u) {
     case 1u: t = s; s = c; c = -t; break;
     case 2u: s = -s; c = -c; break;
@@ -422,7 +422,7 @@ static ekf_fx_t atan_small(uint64_t num, uint64_t den)
     for (i = 1; i < 6; ++i) {
         p = k_atan[i] + mulq31(p, u);
     }
-    return ((ekf_fx_t)tq << (FRAC - 33)) + ((ekf_fx_t)mulq31(t, mulq31(u, p)) << (FRAC - 31));
+    return (ekf_fx_t)tq * ((ekf_fx_t)1 << (FRAC - 33)) + (ekf_fx_t)mulq31(t, mulq31(u, p)) * ((ekf_fx_t)1 << (FRAC - 31));
 }
 
 ekf_fx_t ekf_fx_atan2(ekf_fx_t y, ekf_fx_t x)

@@ -36,7 +36,9 @@ def partials(d: Path):
     return [p for p in d.rglob(".partial-*")] if d.exists() else []
 
 
-def interrupt(proc, sig=signal.SIGINT, timeout=30.0):
+def interrupt(proc, sig=signal.SIGINT, timeout=120.0):
+    """Signals the process group; the generous timeout only guards against a hang on a loaded
+    machine (promptness itself is asserted where it is the point: the record test)."""
     t0 = time.monotonic()
     os.killpg(proc.pid, sig)
     out, err = proc.communicate(timeout=timeout)
@@ -45,8 +47,10 @@ def interrupt(proc, sig=signal.SIGINT, timeout=30.0):
 
 def test_eval_directory_interrupted_leaves_nothing(tmp_path):
     recs = tmp_path / "recs"
-    for k in range(2):
-        assert attekf(["sim", "-q", str(recs / f"r{k}.csv"), "--duration", "60", "--seed", str(k)]) == 0
+    # enough recordings that the signal lands while work remains after the first plot, even
+    # when the machine is fast or the poll below is late
+    for k in range(6):
+        assert attekf(["sim", "-q", str(recs / f"r{k}.csv"), "--duration", "120", "--seed", str(k)]) == 0
     out = tmp_path / "out"
     out.mkdir()
     (out / "table.txt").write_text("an earlier run\n")
@@ -72,7 +76,8 @@ def test_eval_sigterm_cleans_up_too(tmp_path):
 
 
 def test_replay_to_log_interrupted_leaves_no_log(tmp_path):
-    assert attekf(["sim", "-q", str(tmp_path / "long.hdf5"), "--duration", "200", "--rate", "400"]) == 0
+    # about 5 s of writing the log (the partial file's lifetime), so the signal lands inside it
+    assert attekf(["sim", "-q", str(tmp_path / "long.hdf5"), "--duration", "600", "--rate", "400"]) == 0
     log = tmp_path / "frames.log"
     p = start("replay", tmp_path / "long.hdf5", "--to-log", log, "-q")
     wait_for(lambda: partials(tmp_path), p)
