@@ -19,9 +19,17 @@ from attekf.cli import main as attekf
 ATTEKF = str(Path(sys.executable).parent / "attekf")
 
 
+def _as_foreground_job():
+    # A shell starts a background job with SIGINT ignored, and Python keeps an ignored SIGINT
+    # (no KeyboardInterrupt): when the suite itself runs in the background (a CI runner, nohup),
+    # the commands under test would inherit that. Ctrl-C reaches a terminal's foreground job
+    # with the default disposition, so restore it.
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def start(*argv):
     return subprocess.Popen([ATTEKF, *map(str, argv)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, start_new_session=True)
+                            text=True, start_new_session=True, preexec_fn=_as_foreground_job)
 
 
 def wait_for(cond, proc, timeout=60.0):
