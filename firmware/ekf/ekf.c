@@ -2,6 +2,7 @@
  * ekf.c - generic EKF primitives (see ekf.h; derivations in docs/derivation.md).
  */
 #include "ekf.h"
+#include "ekf_util.h"
 
 #include <stddef.h>
 
@@ -247,18 +248,8 @@ ekf_status_t ekf_update_scalar(ekf_scalar_t *x, ekf_scalar_t *P, uint8_t n, cons
         /* H P H^T < 0 means P is not positive semi-definite along H: refuse */
         return EKF_ERR_NUMERIC;
     }
-    if (gate_sigma > EKF_C(0)) {
-        const ekf_scalar_t nu2 = ekf_sq(innovation);
-        const ekf_scalar_t lim = ekf_mul(ekf_sq(gate_sigma), s);
-        /* a gate so small that gate^2 S underflows to 0 passes only a zero innovation (the
-         * ratio would be a division by zero); 1e6 stands for "far out" */
-        const ekf_scalar_t ratio = (lim > EKF_C(0)) ? ekf_div(nu2, lim) : ((nu2 > EKF_C(0)) ? EKF_C(1e6) : EKF_C(0));
-        if (info != NULL) {
-            info->test_ratio = ratio;
-        }
-        if (!ekf_isfinite(ratio) || ratio > EKF_C(1)) {
-            return EKF_GATED;
-        }
+    if (ekf_gate_test(innovation, s, gate_sigma, info) == EKF_GATED) {
+        return EKF_GATED;
     }
 
     /* Gain, and a check that the gain, the new state and the new variances are finite and

@@ -375,16 +375,8 @@ static ekf_status_t update_common(att_cov_t *c, ekf_scalar_t x[ATT_N], const ekf
     if (!ekf_isfinite(s) || !(s >= r_var) || !(s > EKF_C(0))) {{
         return EKF_ERR_NUMERIC; /* H P H^T < 0: P is not positive semi-definite along H */
     }}
-    if (gate > EKF_C(0)) {{
-        const ekf_scalar_t nu2 = ekf_sq(nu);
-        const ekf_scalar_t lim = ekf_mul(ekf_sq(gate), s);
-        const ekf_scalar_t ratio = (lim > EKF_C(0)) ? ekf_div(nu2, lim) : ((nu2 > EKF_C(0)) ? EKF_C(1e6) : EKF_C(0));
-        if (info != NULL) {{
-            info->test_ratio = ratio;
-        }}
-        if (!ekf_isfinite(ratio) || ratio > EKF_C(1)) {{
-            return EKF_GATED;
-        }}
+    if (ekf_gate_test(nu, s, gate, info) == EKF_GATED) {{
+        return EKF_GATED; /* the gate of ekf_update_scalar, the same function */
     }}
     /* the gain, the new state and the new variances, checked before anything is written:
      * finite, and no variance negative beyond rounding */

@@ -23,6 +23,8 @@ TEMPLATE = '''/*
 #include <stddef.h>
 #include <string.h>
 
+#include "ekf_util.h"
+
 /* A single-precision FPU with the GNU assembler syntax (update_common's rows in VLDM/VSTM). */
 #if defined(EKF_SCALAR_FLOAT) && defined(__GNUC__) && defined(__arm__) && defined(__ARM_FP) && ((__ARM_FP & 4) != 0)
 #define ATT_COV_VFP_SP 1
