@@ -25,9 +25,36 @@ ekf_status_t att_init(att_ekf_t *f, const att_settings_t *settings)
     }
     *f = zero;
     f->settings = *settings;
+    return att_reset(f);
+}
+
+ekf_status_t att_reset(att_ekf_t *f)
+{
+    const att_vars_t zero = {0};
+    if (f == NULL) {
+        return EKF_ERR_NULL;
+    }
+    f->vars = zero;
     att_rest_reset(&f->vars.rest);
-    att_bias_reset(&f->vars.bias, &settings->bias);
+    att_bias_reset(&f->vars.bias, &f->settings.bias);
     att_consider_reset(&f->vars.consider);
+    return EKF_OK;
+}
+
+ekf_status_t att_set_settings(att_ekf_t *f, const att_settings_t *settings)
+{
+    ekf_status_t st;
+    if (f == NULL) {
+        return EKF_ERR_NULL;
+    }
+    st = att_settings_check(settings);
+    if (st != EKF_OK) {
+        return st;
+    }
+    if (!att_settings_same_fixed_part(&f->settings, settings)) {
+        return EKF_ERR_SETTINGS; /* a setting that needs att_init changed */
+    }
+    f->settings = *settings;
     return EKF_OK;
 }
 
@@ -231,10 +258,12 @@ ekf_status_t att_predict(att_ekf_t *f, ekf_scalar_t dt)
     return (commit(f, &saved) == EKF_OK) ? st : EKF_ERR_NUMERIC;
 }
 
-typedef ekf_status_t (*sensor_stage_t)(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t vec[3]);
+typedef ekf_status_t (*sensor_stage_t)(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t vec[3],
+                                       ekf_scalar_t dt);
 
-/* att_update_gyro, _accel, _mag: aligned filter, a valid vector, one stage. */
-static ekf_status_t public_update(att_ekf_t *f, const ekf_scalar_t vec[3], ekf_scalar_t range, sensor_stage_t stage)
+/* att_update_gyro, _accel, _mag: aligned filter, a valid vector and interval, one stage. */
+static ekf_status_t public_update(att_ekf_t *f, const ekf_scalar_t vec[3], ekf_scalar_t dt, ekf_scalar_t range,
+                                  sensor_stage_t stage)
 {
     att_vars_t saved;
     ekf_status_t st;
@@ -242,30 +271,33 @@ static ekf_status_t public_update(att_ekf_t *f, const ekf_scalar_t vec[3], ekf_s
         return EKF_ERR_NULL;
     }
     st = ((f->vars.flags & ATT_FLAG_ALIGNED) == 0u) ? EKF_ERR_NOT_INITIALISED : check_vec(vec, range);
+    if (st == EKF_OK) {
+        st = check_dt(&f->settings, dt);
+    }
     if (st != EKF_OK) {
         return refuse(f, st);
     }
     att_vars_copy(&saved, &f->vars);
-    st = stage(&f->vars, &f->settings, vec);
+    st = stage(&f->vars, &f->settings, vec, dt);
     if (is_error(st)) {
         return restore(f, &saved, st);
     }
     return (commit(f, &saved) == EKF_OK) ? st : EKF_ERR_NUMERIC;
 }
 
-ekf_status_t att_update_gyro(att_ekf_t *f, const ekf_scalar_t gyro[3])
+ekf_status_t att_update_gyro(att_ekf_t *f, const ekf_scalar_t gyro[3], ekf_scalar_t dt)
 {
-    return public_update(f, gyro, (f != NULL) ? f->settings.gyro_range : EKF_C(0), att_stage_gyro);
+    return public_update(f, gyro, dt, (f != NULL) ? f->settings.gyro_range : EKF_C(0), att_stage_gyro);
 }
 
-ekf_status_t att_update_accel(att_ekf_t *f, const ekf_scalar_t accel[3])
+ekf_status_t att_update_accel(att_ekf_t *f, const ekf_scalar_t accel[3], ekf_scalar_t dt)
 {
-    return public_update(f, accel, (f != NULL) ? f->settings.accel_range : EKF_C(0), att_stage_accel);
+    return public_update(f, accel, dt, (f != NULL) ? f->settings.accel_range : EKF_C(0), att_stage_accel);
 }
 
-ekf_status_t att_update_mag(att_ekf_t *f, const ekf_scalar_t mag[3])
+ekf_status_t att_update_mag(att_ekf_t *f, const ekf_scalar_t mag[3], ekf_scalar_t dt)
 {
-    return public_update(f, mag, (f != NULL) ? f->settings.mag_range : EKF_C(0), att_stage_mag);
+    return public_update(f, mag, dt, (f != NULL) ? f->settings.mag_range : EKF_C(0), att_stage_mag);
 }
 
 /* ---- the step ---- */
@@ -340,14 +372,15 @@ static ekf_status_t discard(att_ekf_t *f, const att_vars_t *saved, att_step_repo
 }
 
 /* The gyroscope stage of a sample: a saturated reading widens the rate uncertainty, a
- * normal one is fused. */
+ * normal one is fused (its variance needs the sample's interval: the sample that completes
+ * the alignment may have none, and its gyro is then not fused). */
 static ekf_status_t gyro_stage(att_vars_t *w, const att_settings_t *s, const att_sample_t *sm)
 {
     if ((sm->valid & ATT_GYRO_SATURATED) != 0u) {
         return att_stage_gyro_saturated(w, s, sm->gyro);
     }
     if ((sm->valid & ATT_HAS_GYRO) != 0u) {
-        return att_stage_gyro(w, s, sm->gyro);
+        return (check_dt(s, sm->dt) == EKF_OK) ? att_stage_gyro(w, s, sm->gyro, sm->dt) : EKF_SKIPPED;
     }
     return EKF_OK;
 }
@@ -382,7 +415,7 @@ ekf_status_t att_step(att_ekf_t *f, const att_sample_t *sample, att_step_report_
         w->flags |= ATT_FLAG_AT_REST;
         /* the rest offset averaged this sample with weight dt / bias_time (att_rest.c): the
          * offset learned in motion hands over to it at that rate */
-        att_bias_rest(&w->bias, ekf_div(sample->dt, w->rest.bias_time), ekf_sq(s->gyro_noise));
+        att_bias_rest(&w->bias, ekf_div(sample->dt, w->rest.bias_time), ekf_div(ekf_sq(s->gyro_noise), sample->dt));
     }
     if ((w->flags & ATT_FLAG_ALIGNED) == 0u) {
         /* averaging, then the alignment and the gyro of its last sample */
@@ -409,14 +442,14 @@ ekf_status_t att_step(att_ekf_t *f, const att_sample_t *sample, att_step_report_
         ekf_count(&w->diag.steps);
         if ((sample->valid & ATT_HAS_ACCEL) != 0u) {
             last = &rep->accel;
-            rep->accel = att_stage_accel(w, s, sample->accel);
+            rep->accel = att_stage_accel(w, s, sample->accel, sample->dt);
             if (is_error(rep->accel)) {
                 return discard(f, &saved, rep, &rep->accel);
             }
         }
         if ((sample->valid & ATT_HAS_MAG) != 0u) {
             last = &rep->mag;
-            rep->mag = att_stage_mag(w, s, sample->mag);
+            rep->mag = att_stage_mag(w, s, sample->mag, sample->dt);
             if (is_error(rep->mag)) {
                 return discard(f, &saved, rep, &rep->mag);
             }

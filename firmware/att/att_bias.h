@@ -28,21 +28,16 @@
 
 #include "att_defs.h"
 #include "att_gen.h"
+#include "att_settings_table.h"
 #include "ekf_scalar.h"
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
+/* Its settings (rows ATT_SETTINGS_BIAS of att_settings_table.h; names "bias.*"). */
 typedef struct {
-    ekf_scalar_t sigma_init; /* rad/s: 1 sigma of the offset before the first rest, per axis */
-    ekf_scalar_t walk;       /* rad/s/sqrt(s): random walk of the offset (its instability) */
-    ekf_scalar_t mag_derate; /* >= 1: the magnetometer's innovations enter the offset's update
-                                with their variance times this (their errors are correlated
-                                across samples; docs/derivation.md, "Gyroscope offset in motion") */
-    uint16_t motion;         /* learn the offset in motion from 1: the accelerometer's innovations;
-                                2: the accelerometer's and the magnetometer's; 0: not at all (the
-                                uncertainty is still propagated into the reported covariance) */
+    ATT_SETTINGS_BIAS(ATT_SETTING_FIELD)
 } att_bias_settings_t;
 
 /* Unit of Pb, rad/s: the offset's variance spans 1e-9..1e-4 (rad/s)^2 and its growth per

@@ -28,6 +28,10 @@ enum { ATT_SENSOR_GYRO = 0, ATT_SENSOR_ACCEL = 1, ATT_SENSOR_MAG = 2 };
 
 /* ---- helpers (att.c) ---- */
 
+/* 1 if every setting that cannot change while the filter runs (live = 0 in
+ * att_settings_table.h) is the same in a and b (att_settings.c). */
+int att_settings_same_fixed_part(const att_settings_t *a, const att_settings_t *b);
+
 /* *dst = *src byte for byte (padding included, so that a restored filter compares equal):
  * the one copy of the variables each call takes before its stages run. */
 void att_vars_copy(att_vars_t *dst, const att_vars_t *src);
@@ -74,10 +78,11 @@ ekf_status_t att_stage_align_sample(att_vars_t *v, const att_settings_t *s, cons
 /* att_predict.c: dt in (0, dt_max], aligned filter. */
 ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scalar_t dt);
 /* att_update.c: aligned filter, the vector finite and within its range. */
-ekf_status_t att_stage_gyro(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t gyro[3]);
+/* dt (s, > 0): the interval the sample covers; the noise densities give its variance. */
+ekf_status_t att_stage_gyro(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t gyro[3], ekf_scalar_t dt);
 ekf_status_t att_stage_gyro_saturated(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t gyro[3]);
-ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t accel[3]);
-ekf_status_t att_stage_mag(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t mag[3]);
+ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t accel[3], ekf_scalar_t dt);
+ekf_status_t att_stage_mag(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t mag[3], ekf_scalar_t dt);
 
 #ifdef __cplusplus
 }

@@ -92,7 +92,7 @@ ekf_status_t att_stage_gyro_saturated(att_vars_t *v, const att_settings_t *s, co
     return EKF_SKIPPED;
 }
 
-ekf_status_t att_stage_gyro(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t gyro[3])
+ekf_status_t att_stage_gyro(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t gyro[3], ekf_scalar_t dt)
 {
     ekf_scalar_t gate, r_var;
     ekf_status_t st;
@@ -100,7 +100,7 @@ ekf_status_t att_stage_gyro(att_vars_t *v, const att_settings_t *s, const ekf_sc
     int i, gated = 0, bypass_failed = 0;
 
     gate = gate_for(v, s, ATT_SENSOR_GYRO, s->gyro_gate);
-    r_var = ekf_sq(s->gyro_noise);
+    r_var = ekf_div(ekf_sq(s->gyro_noise), dt); /* a density: the variance of the sample's mean */
     for (i = 0; i < 3; ++i) {
         /* the offset learned in motion stays within bias_max of zero together with the
          * rest offset */
@@ -142,9 +142,9 @@ ekf_status_t att_stage_gyro(att_vars_t *v, const att_settings_t *s, const ekf_sc
 /* Blends a sample into the low-passed specific force (see accel_lp_turn, att_predict.c):
  * the first stage follows the sample, the second (accel_lpf_order 2) the first stage; a
  * restarted low-pass takes the sample in every stage. */
-static void accel_lp_blend(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t accel[3])
+static void accel_lp_blend(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t accel[3], ekf_scalar_t dt)
 {
-    const ekf_scalar_t k = ekf_div(v->last_dt, ekf_add(s->accel_lpf_tau, v->last_dt));
+    const ekf_scalar_t k = ekf_div(dt, ekf_add(s->accel_lpf_tau, dt));
     ekf_scalar_t *first = (s->accel_lpf_order > 1u) ? v->accel_lp1 : v->accel_lp;
     int i;
     for (i = 0; i < 3; ++i) {
@@ -164,17 +164,17 @@ static void accel_lp_blend(att_vars_t *v, const att_settings_t *s, const ekf_sca
  * variance estimates and whose correlation time is the low-pass delay (accel_lpf_order
  * stages of accel_lpf_tau), passes into the reported tilt covariance through the gains
  * just applied (att_consider.h). */
-static void consider_accel(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t var0[2])
+static void consider_accel(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t var0[2], ekf_scalar_t dt)
 {
     const ekf_scalar_t tau = ekf_mul(ekf_from_int((int32_t)s->accel_lpf_order), s->accel_lpf_tau);
     ekf_scalar_t kf[2];
     kf[0] = reduction(var0[0], att_cov_var(&v->cov, ATT_PHI));
     kf[1] = reduction(var0[1], att_cov_var(&v->cov, ATT_THETA));
     att_consider_accel(&v->consider, kf, ekf_div(v->accel_dev_var, ekf_sq(s->gravity)),
-                       ekf_div(tau, ekf_add(tau, v->last_dt)));
+                       ekf_div(tau, ekf_add(tau, dt)));
 }
 
-ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t accel[3])
+ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t accel[3], ekf_scalar_t dt)
 {
     ekf_scalar_t norm, a_norm, err, r_var, gate, phi0, theta0, var0[2];
     ekf_scalar_t a[3], h[3], hj[6];
@@ -191,7 +191,7 @@ ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_s
     /* a: what is fused, the low-passed force when the low-pass is on (every sample enters
      * it, fused or not), else the sample */
     if (s->accel_lpf_tau > EKF_C(0)) {
-        accel_lp_blend(v, s, accel);
+        accel_lp_blend(v, s, accel, dt);
         for (i = 0; i < 3; ++i) {
             a[i] = v->accel_lp[i];
         }
@@ -205,7 +205,7 @@ ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_s
     if (s->accel_adapt_tau > EKF_C(0)) {
         /* running mean over accel_adapt_tau of the squared norm error of a: how much linear
          * acceleration is left in it lately, whatever this one sample's norm happens to be */
-        const ekf_scalar_t k = ekf_div(v->last_dt, ekf_add(s->accel_adapt_tau, v->last_dt));
+        const ekf_scalar_t k = ekf_div(dt, ekf_add(s->accel_adapt_tau, dt));
         const ekf_scalar_t e = ekf_sub(a_norm, s->gravity);
         v->accel_dev_var = ekf_mac(v->accel_dev_var, k, ekf_sub(ekf_sq(e), v->accel_dev_var));
     }
@@ -215,12 +215,15 @@ ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_s
         ekf_count(&v->diag.accel_skipped);
         return EKF_SKIPPED;
     }
-    /* unit-vector measurement; variance (accel_noise^2 + recent linear-acceleration
-     * variance) / g^2, optionally inflated by 1 + (err / accel_band)^2 for this sample
-     * (docs/derivation.md, "Linear acceleration") */
-    r_var = ekf_div(ekf_add(ekf_sq(s->accel_noise), v->accel_dev_var), ekf_sq(s->gravity));
-    if (v->accel_dev_var > ekf_sq(s->accel_noise)) {
-        v->flags |= ATT_FLAG_ACCEL_DEWEIGHTED; /* the noise variance at least doubled */
+    /* unit-vector measurement; variance (accel_noise^2 + the recent linear-acceleration
+     * variance times accel_adapt_weight) / (g^2 dt), both densities, optionally inflated by
+     * 1 + (err / accel_band)^2 for this sample (docs/derivation.md, "Linear acceleration") */
+    {
+        const ekf_scalar_t lin = ekf_mul(v->accel_dev_var, s->accel_adapt_weight);
+        r_var = ekf_div(ekf_div(ekf_add(ekf_sq(s->accel_noise), lin), dt), ekf_sq(s->gravity));
+        if (lin > ekf_sq(s->accel_noise)) {
+            v->flags |= ATT_FLAG_ACCEL_DEWEIGHTED; /* the noise variance at least doubled */
+        }
     }
     if (s->accel_band > EKF_C(0)) {
         const ekf_scalar_t k = ekf_div(err, s->accel_band);
@@ -286,7 +289,7 @@ ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_s
     if (att_normalise(v)) {
         ekf_count(&v->diag.remaps);
     }
-    consider_accel(v, s, var0);
+    consider_accel(v, s, var0, dt);
     att_update_gimbal_flag(v, s);
     gate_result(v, s, ATT_SENSOR_ACCEL, gated || bypass_failed);
     v->tilt_ok = (uint8_t)(consistent && (v->flags & ATT_FLAG_ACCEL_DEWEIGHTED) == 0u);
@@ -332,7 +335,7 @@ static void reset_heading(att_vars_t *v, const att_settings_t *s, ekf_scalar_t h
     att_consider_heading_reset(&v->consider);
 }
 
-ekf_status_t att_stage_mag(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t mag[3])
+ekf_status_t att_stage_mag(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t mag[3], ekf_scalar_t dt)
 {
     ekf_scalar_t lev[3], norm, heading, nu, r_var;
     att_trig_t t;
@@ -396,7 +399,9 @@ ekf_status_t att_stage_mag(att_vars_t *v, const att_settings_t *s, const ekf_sca
      * running variance accel_dev_var, m/s^2 squared, is a tilt variance of
      * accel_dev_var / g^2), the heading is trusted that much less (docs/derivation.md,
      * "Magnetometer"). */
-    r_var = ekf_mac(ekf_sq(s->mag_heading_noise), v->mag_tan2_dip, ekf_div(v->accel_dev_var, ekf_sq(s->gravity)));
+    r_var = ekf_div(ekf_mac(ekf_sq(s->mag_heading_noise), v->mag_tan2_dip,
+                            ekf_div(ekf_mul(v->accel_dev_var, s->accel_adapt_weight), ekf_sq(s->gravity))),
+                    dt);
     /* no gate bypass for the magnetometer (a magnet that passes the norm and dip tests would
      * drag the heading): recovery is the reset above, after mag_reset_time */
     {

@@ -192,7 +192,7 @@ int main(int argc, char **argv)
 
         /* the same stages one by one, in att_step's order */
         t0 = TARGET_SYSTICK_NOW;
-        (void)att_update_gyro(&staged, s.gyro);
+        (void)att_update_gyro(&staged, s.gyro, s.dt);
         t1 = TARGET_SYSTICK_NOW;
         c_gyro = to_insns(elapsed(t0, t1) - base);
         t0 = TARGET_SYSTICK_NOW;
@@ -200,11 +200,11 @@ int main(int argc, char **argv)
         t1 = TARGET_SYSTICK_NOW;
         c_predict = to_insns(elapsed(t0, t1) - base);
         t0 = TARGET_SYSTICK_NOW;
-        (void)att_update_accel(&staged, s.accel);
+        (void)att_update_accel(&staged, s.accel, s.dt);
         t1 = TARGET_SYSTICK_NOW;
         c_accel = to_insns(elapsed(t0, t1) - base);
         t0 = TARGET_SYSTICK_NOW;
-        (void)att_update_mag(&staged, s.mag);
+        (void)att_update_mag(&staged, s.mag, s.dt);
         t1 = TARGET_SYSTICK_NOW;
         c_mag = to_insns(elapsed(t0, t1) - base);
         stat_add(&st_gyro, c_gyro);
@@ -231,7 +231,7 @@ int main(int argc, char **argv)
             t1 = TARGET_SYSTICK_NOW;
             c_rest = to_insns(elapsed(t0, t1) - base);
             t0 = TARGET_SYSTICK_NOW;
-            (void)att_stage_gyro(pv, set, s.gyro);
+            (void)att_stage_gyro(pv, set, s.gyro, s.dt);
             t1 = TARGET_SYSTICK_NOW;
             c_gyro = to_insns(elapsed(t0, t1) - base);
             t0 = TARGET_SYSTICK_NOW;
@@ -240,11 +240,11 @@ int main(int argc, char **argv)
             t1 = TARGET_SYSTICK_NOW;
             c_predict = to_insns(elapsed(t0, t1) - base);
             t0 = TARGET_SYSTICK_NOW;
-            (void)att_stage_accel(pv, set, s.accel);
+            (void)att_stage_accel(pv, set, s.accel, s.dt);
             t1 = TARGET_SYSTICK_NOW;
             c_accel = to_insns(elapsed(t0, t1) - base);
             t0 = TARGET_SYSTICK_NOW;
-            (void)att_stage_mag(pv, set, s.mag);
+            (void)att_stage_mag(pv, set, s.mag, s.dt);
             t1 = TARGET_SYSTICK_NOW;
             c_mag = to_insns(elapsed(t0, t1) - base);
             t0 = TARGET_SYSTICK_NOW;

@@ -8,91 +8,29 @@
 #include <string.h>
 
 /* ------------------------------------------------------------------------------------
- * Settings table. One row per field of att_settings_t, in declaration order (which
- * attekf_settings_table_complete() relies on). Units and help repeat att.h in short.
+ * Settings: the estimator's own table (att_setting_info, expanded from
+ * att_settings_table.h), and the help text of the same rows.
  * ------------------------------------------------------------------------------------ */
-typedef struct {
-    const char *name;
-    size_t offset;
-    int type;
-    const char *unit;
-    const char *help;
-} setting_row_t;
+#define HELP_ROW(name, type, def, def_fixed, lo, hi, check, live, unit, help) help,
+static const char *const k_help[] = {
+    ATT_SETTINGS_MAIN(HELP_ROW) ATT_SETTINGS_REST(HELP_ROW) ATT_SETTINGS_BIAS(HELP_ROW)};
 
-#define SCALAR_ROW(field, unit, help) \
-    { #field, offsetof(att_settings_t, field), ATTEKF_SETTING_SCALAR, unit, help }
+#define N_SETTINGS (sizeof k_help / sizeof k_help[0])
 
-static const setting_row_t k_settings[] = {
-    SCALAR_ROW(rate_walk, "rad/s/sqrt(s)", "body-rate random walk"),
-    SCALAR_ROW(angle_walk, "rad/sqrt(s)", "extra angle random walk (model error)"),
-    SCALAR_ROW(angle_walk_rate, "sqrt(s)", "angle random walk per rad/s of body rate (gyro scale errors; reported)"),
-    SCALAR_ROW(euler_rate_rel, "1", "independent Euler-rate error, fraction of their variance per step"),
-    SCALAR_ROW(gyro_noise, "rad/s", "gyro white noise, 1 sigma per sample"),
-    SCALAR_ROW(gyro_gate, "sigma", "gyro innovation gate, 0 = off"),
-    SCALAR_ROW(gyro_range, "rad/s", "gyro |component| above this is refused"),
-    SCALAR_ROW(rest.rest_gyro, "rad/s", "rate (and its deviation) below which the sensor may rest"),
-    SCALAR_ROW(rest.rest_accel, "m/s^2", "deviation of the accel from its low-passed value at rest"),
-    SCALAR_ROW(rest.rest_time, "s", "continuous rest before the gyro offset is learned"),
-    SCALAR_ROW(rest.rest_tau, "s", "time constant of the rest detector's low-pass filters"),
-    SCALAR_ROW(rest.bias_tau, "s", "averaging time of the gyro offset, 0 = no offset estimation"),
-    SCALAR_ROW(rest.bias_max, "rad/s", "|gyro offset| per axis never exceeds this"),
-    SCALAR_ROW(bias.sigma_init, "rad/s", "1 sigma of the gyro offset before the first rest"),
-    SCALAR_ROW(bias.walk, "rad/s/sqrt(s)", "random walk of the gyro offset (instability)"),
-    SCALAR_ROW(bias.mag_derate, "1", "magnetometer innovations' variance factor in the offset's update (>= 1)"),
-    { "bias.motion", offsetof(att_settings_t, bias.motion), ATTEKF_SETTING_U16, "0/1/2",
-      "learn the gyro offset in motion: 0 no, 1 from the accelerometer, 2 and the magnetometer" },
-    SCALAR_ROW(gravity, "m/s^2", "magnitude of gravity"),
-    SCALAR_ROW(accel_noise, "m/s^2", "accelerometer noise incl. unmodelled motion, 1 sigma"),
-    SCALAR_ROW(accel_band, "m/s^2", "| |a| - g | at which the accel variance doubles, 0 = off"),
-    SCALAR_ROW(accel_reject, "m/s^2", "| |a| - g | above which accel is not fused"),
-    SCALAR_ROW(accel_adapt_tau, "s", "running mean of ( |a| - g )^2 added to the accel variance, 0 = off"),
-    SCALAR_ROW(accel_lpf_tau, "s", "accel low-pass in the earth-fixed (rate-compensated) frame, per stage, 0 = off"),
-    { "accel_lpf_order", offsetof(att_settings_t, accel_lpf_order), ATTEKF_SETTING_U16, "stages",
-      "stages of the accel low-pass (1 or 2)" },
-    SCALAR_ROW(accel_gate, "sigma", "accel innovation gate, 0 = off"),
-    SCALAR_ROW(accel_range, "m/s^2", "accel |component| above this is refused"),
-    SCALAR_ROW(accel_ref_sigma, "rad", "accel gravity-direction error averaging cannot remove (reported)"),
-    SCALAR_ROW(mag_heading_noise, "rad", "magnetic heading noise, 1 sigma"),
-    SCALAR_ROW(mag_gate, "sigma", "magnetometer innovation gate, 0 = off"),
-    SCALAR_ROW(mag_norm_tol, "fraction", "allowed | |m|/ref - 1 | before 'disturbed'"),
-    SCALAR_ROW(mag_dip_tol, "rad", "allowed |dip - ref dip| before 'disturbed'"),
-    SCALAR_ROW(mag_reset_time, "s", "gating of an undisturbed field after which the heading is reset, 0 = never"),
-    SCALAR_ROW(mag_ref_norm, "uT", "reference field norm, 0 = learn at alignment"),
-    SCALAR_ROW(mag_ref_dip, "rad", "reference dip, positive down (if mag_ref_norm > 0)"),
-    SCALAR_ROW(mag_declination, "rad", "magnetic declination, east positive"),
-    SCALAR_ROW(mag_ref_sigma, "rad", "magnetic reference error averaging cannot remove (reported)"),
-    SCALAR_ROW(mag_range, "uT", "magnetometer |component| above this is refused"),
-    SCALAR_ROW(gate_timeout, "s", "continuous gating after which a gate is bypassed, 0 = never"),
-    SCALAR_ROW(gimbal_limit, "rad", "|pitch| above which heading is held"),
-    SCALAR_ROW(dt_max, "s", "longest accepted time step"),
-    SCALAR_ROW(heading_var_max, "rad^2", "cap on the heading variance"),
-    SCALAR_ROW(var_floor, "rad^2", "floor of every state variance"),
-    SCALAR_ROW(init_tilt_sigma, "rad", "initial roll/pitch sigma"),
-    SCALAR_ROW(init_heading_sigma, "rad", "initial heading sigma (with magnetometer)"),
-    SCALAR_ROW(init_rate_sigma, "rad/s", "initial body-rate sigma"),
-    { "align_samples", offsetof(att_settings_t, align_samples), ATTEKF_SETTING_U16, "samples",
-      "accelerometer samples averaged for the alignment (>= 1)" },
-};
-
-#define N_SETTINGS (sizeof k_settings / sizeof k_settings[0])
+static int row_type(const att_setting_info_t *r)
+{
+    return (r->type == ATT_SETTING_U16) ? ATTEKF_SETTING_U16 : ATTEKF_SETTING_SCALAR;
+}
 
 static size_t type_size(int type)
 {
     return (type == ATTEKF_SETTING_U16) ? sizeof(uint16_t) : sizeof(ekf_scalar_t);
 }
 
-static const setting_row_t *find_setting(const char *name)
+static const att_setting_info_t *find_setting(const char *name)
 {
-    size_t i;
-    if (name == NULL) {
-        return NULL;
-    }
-    for (i = 0; i < N_SETTINGS; ++i) {
-        if (strcmp(k_settings[i].name, name) == 0) {
-            return &k_settings[i];
-        }
-    }
-    return NULL;
+    const int i = att_setting_index(name);
+    return (i < 0) ? NULL : att_setting_info((size_t)i);
 }
 
 int attekf_api_version(void) { return ATTEKF_NATIVE_API_VERSION; }
@@ -109,15 +47,15 @@ void attekf_settings_default(att_settings_t *s)
     }
 }
 
-size_t attekf_setting_count(void) { return N_SETTINGS; }
-const char *attekf_setting_name(size_t i) { return (i < N_SETTINGS) ? k_settings[i].name : NULL; }
-const char *attekf_setting_unit(size_t i) { return (i < N_SETTINGS) ? k_settings[i].unit : NULL; }
-const char *attekf_setting_help(size_t i) { return (i < N_SETTINGS) ? k_settings[i].help : NULL; }
-int attekf_setting_type(size_t i) { return (i < N_SETTINGS) ? k_settings[i].type : -1; }
+size_t attekf_setting_count(void) { return att_setting_count(); }
+const char *attekf_setting_name(size_t i) { return (i < N_SETTINGS) ? att_setting_info(i)->name : NULL; }
+const char *attekf_setting_unit(size_t i) { return (i < N_SETTINGS) ? att_setting_info(i)->unit : NULL; }
+const char *attekf_setting_help(size_t i) { return (i < N_SETTINGS) ? k_help[i] : NULL; }
+int attekf_setting_type(size_t i) { return (i < N_SETTINGS) ? row_type(att_setting_info(i)) : -1; }
 
 int attekf_setting_set(att_settings_t *s, const char *name, double value)
 {
-    const setting_row_t *row = find_setting(name);
+    const att_setting_info_t *row = find_setting(name);
     unsigned char *base = (unsigned char *)s;
     if (s == NULL) {
         return ATTEKF_SETTING_NULL;
@@ -128,7 +66,7 @@ int attekf_setting_set(att_settings_t *s, const char *name, double value)
     if (!isfinite(value)) {
         return ATTEKF_SETTING_BAD_VALUE;
     }
-    if (row->type == ATTEKF_SETTING_U16) {
+    if (row_type(row) == ATTEKF_SETTING_U16) {
         uint16_t v;
         if (value < 0.0 || value > 65535.0 || floor(value) != value) {
             return ATTEKF_SETTING_BAD_VALUE;
@@ -150,7 +88,7 @@ int attekf_setting_set(att_settings_t *s, const char *name, double value)
 
 int attekf_setting_get(const att_settings_t *s, const char *name, double *value)
 {
-    const setting_row_t *row = find_setting(name);
+    const att_setting_info_t *row = find_setting(name);
     const unsigned char *base = (const unsigned char *)s;
     if (s == NULL || value == NULL) {
         return ATTEKF_SETTING_NULL;
@@ -158,7 +96,7 @@ int attekf_setting_get(const att_settings_t *s, const char *name, double *value)
     if (row == NULL) {
         return ATTEKF_SETTING_UNKNOWN;
     }
-    if (row->type == ATTEKF_SETTING_U16) {
+    if (row_type(row) == ATTEKF_SETTING_U16) {
         uint16_t v;
         memcpy(&v, base + row->offset, sizeof v);
         *value = (double)v;
@@ -174,14 +112,18 @@ int attekf_settings_table_complete(void)
 {
     size_t i;
     size_t end = 0; /* first byte after the previous field */
+    if (att_setting_count() != N_SETTINGS) {
+        return 0;
+    }
     for (i = 0; i < N_SETTINGS; ++i) {
-        const size_t size = type_size(k_settings[i].type);
+        const att_setting_info_t *r = att_setting_info(i);
+        const size_t size = type_size(row_type(r));
         /* In declaration order, a gap can only be alignment padding, which is smaller
          * than the field that follows it (fields are aligned to their own size here). */
-        if (k_settings[i].offset < end || k_settings[i].offset - end >= size) {
+        if (r->offset < end || r->offset - end >= size) {
             return 0;
         }
-        end = k_settings[i].offset + size;
+        end = r->offset + size;
     }
     /* Tail padding is smaller than the largest member. */
     return (sizeof(att_settings_t) >= end && sizeof(att_settings_t) - end < sizeof(ekf_scalar_t)) ? 1 : 0;

@@ -172,15 +172,15 @@ static void stage_errors(att_ekf_t *f, const att_sample_t *good)
     int k;
 
     TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_predict(NULL, good->dt));
-    TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_update_gyro(NULL, good->gyro));
-    TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_update_accel(NULL, good->accel));
-    TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_update_mag(NULL, good->mag));
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_update_gyro(NULL, good->gyro, EKF_C(0.01)));
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_update_accel(NULL, good->accel, EKF_C(0.01)));
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_update_mag(NULL, good->mag, EKF_C(0.01)));
     if (!is_aligned) {
         REFUSED(f, att_predict(f, good->dt), EKF_ERR_NOT_INITIALISED, CNT_REJECTED);
-        REFUSED(f, att_update_gyro(f, good->gyro), EKF_ERR_NOT_INITIALISED, CNT_REJECTED);
-        REFUSED(f, att_update_accel(f, good->accel), EKF_ERR_NOT_INITIALISED, CNT_REJECTED);
-        REFUSED(f, att_update_mag(f, good->mag), EKF_ERR_NOT_INITIALISED, CNT_REJECTED);
-        REFUSED(f, att_update_mag(f, NULL), EKF_ERR_NOT_INITIALISED, CNT_REJECTED);
+        REFUSED(f, att_update_gyro(f, good->gyro, EKF_C(0.01)), EKF_ERR_NOT_INITIALISED, CNT_REJECTED);
+        REFUSED(f, att_update_accel(f, good->accel, EKF_C(0.01)), EKF_ERR_NOT_INITIALISED, CNT_REJECTED);
+        REFUSED(f, att_update_mag(f, good->mag, EKF_C(0.01)), EKF_ERR_NOT_INITIALISED, CNT_REJECTED);
+        REFUSED(f, att_update_mag(f, NULL, EKF_C(0.01)), EKF_ERR_NOT_INITIALISED, CNT_REJECTED);
         return;
     }
     for (k = 0; k < 6; ++k) {
@@ -188,11 +188,11 @@ static void stage_errors(att_ekf_t *f, const att_sample_t *good)
     }
     for (k = 0; k < N_BAD_VEC; ++k) {
         const ekf_scalar_t *v = bad_vec(k, good->gyro, s->gyro_range, buf, &want);
-        REFUSED(f, att_update_gyro(f, v), want, CNT_REJECTED);
+        REFUSED(f, att_update_gyro(f, v, EKF_C(0.01)), want, CNT_REJECTED);
         v = bad_vec(k, good->accel, s->accel_range, buf, &want);
-        REFUSED(f, att_update_accel(f, v), want, CNT_REJECTED);
+        REFUSED(f, att_update_accel(f, v, EKF_C(0.01)), want, CNT_REJECTED);
         v = bad_vec(k, good->mag, s->mag_range, buf, &want);
-        REFUSED(f, att_update_mag(f, v), want, CNT_REJECTED);
+        REFUSED(f, att_update_mag(f, v, EKF_C(0.01)), want, CNT_REJECTED);
     }
 }
 
@@ -350,9 +350,9 @@ static void test_numeric_failures_discard_the_whole_call(void)
     /* (a) a heading variance of -1 (P indefinite), set through the covariance interface:
      * every update refuses (no floor hides it), and so does the guard after a prediction */
     att_cov_reset_state(&f.vars.cov, ATT_PSI, EKF_C(-1));
-    REFUSED(&f, att_update_gyro(&f, good.gyro), NU, CNT_NUMERIC);
-    REFUSED(&f, att_update_accel(&f, good.accel), NU, CNT_NUMERIC);
-    REFUSED(&f, att_update_mag(&f, good.mag), NU, CNT_NUMERIC);
+    REFUSED(&f, att_update_gyro(&f, good.gyro, EKF_C(0.01)), NU, CNT_NUMERIC);
+    REFUSED(&f, att_update_accel(&f, good.accel, EKF_C(0.01)), NU, CNT_NUMERIC);
+    REFUSED(&f, att_update_mag(&f, good.mag, EKF_C(0.01)), NU, CNT_NUMERIC);
     REFUSED(&f, att_predict(&f, good.dt), NU, CNT_NUMERIC);
     /* att_step: at the first stage (gyro), in the middle of the step (the accelerometer,
      * after the prediction ran on the working copy), at the last one (the magnetometer), and
@@ -380,8 +380,8 @@ static void test_numeric_failures_discard_the_whole_call(void)
     aligned(&f, &sim);
     sample_at_rest(&sim, &good);
     att_cov_reset_state(&f.vars.cov, ATT_PHID, inf_s(1.0));
-    REFUSED(&f, att_update_mag(&f, good.mag), NU, CNT_NUMERIC);
-    REFUSED(&f, att_update_gyro(&f, good.gyro), NU, CNT_NUMERIC);
+    REFUSED(&f, att_update_mag(&f, good.mag, EKF_C(0.01)), NU, CNT_NUMERIC);
+    REFUSED(&f, att_update_gyro(&f, good.gyro, EKF_C(0.01)), NU, CNT_NUMERIC);
     REFUSED(&f, att_predict(&f, good.dt), NU, CNT_NUMERIC);
     REFUSED(&f, att_step(&f, &good, &rep), NU, CNT_NUMERIC);
     expect_report(&rep, SK, NU, SK, SK);

@@ -491,9 +491,9 @@ static void test_not_initialised(void)
     init_default(&f);
     snap(&f, &s);
     TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_INITIALISED, att_predict(&f, EKF_C(0.01)));
-    TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_INITIALISED, att_update_gyro(&f, v));
-    TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_INITIALISED, att_update_accel(&f, v));
-    TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_INITIALISED, att_update_mag(&f, v));
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_INITIALISED, att_update_gyro(&f, v, EKF_C(0.01)));
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_INITIALISED, att_update_accel(&f, v, EKF_C(0.01)));
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_INITIALISED, att_update_mag(&f, v, EKF_C(0.01)));
     smp.valid = ATT_HAS_GYRO; /* no accelerometer: nothing to align on */
     TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_INITIALISED, att_step(&f, &smp, NULL));
     assert_unchanged(&f, &s);
@@ -526,26 +526,26 @@ static void test_every_bad_input_class_leaves_state_unchanged(void)
     for (k = 0; k < 3; ++k) {
         memcpy(bad, good, sizeof bad);
         bad[k] = nan_v;
-        TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, att_update_gyro(&f, bad));
-        TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, att_update_accel(&f, bad));
-        TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, att_update_mag(&f, bad));
+        TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, att_update_gyro(&f, bad, EKF_C(0.01)));
+        TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, att_update_accel(&f, bad, EKF_C(0.01)));
+        TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, att_update_mag(&f, bad, EKF_C(0.01)));
         bad[k] = inf_v;
-        TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, att_update_gyro(&f, bad));
-        TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, att_update_accel(&f, bad));
-        TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, att_update_mag(&f, bad));
+        TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, att_update_gyro(&f, bad, EKF_C(0.01)));
+        TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, att_update_accel(&f, bad, EKF_C(0.01)));
+        TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, att_update_mag(&f, bad, EKF_C(0.01)));
         bad[k] = -inf_v;
-        TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, att_update_accel(&f, bad));
+        TEST_ASSERT_EQUAL_INT(EKF_ERR_NOT_FINITE, att_update_accel(&f, bad, EKF_C(0.01)));
         memcpy(bad, good, sizeof bad);
         bad[k] = EKF_C(41); /* gyro_range 40 rad/s */
-        TEST_ASSERT_EQUAL_INT(EKF_ERR_RANGE, att_update_gyro(&f, bad));
+        TEST_ASSERT_EQUAL_INT(EKF_ERR_RANGE, att_update_gyro(&f, bad, EKF_C(0.01)));
         bad[k] = EKF_C(-161); /* accel_range 160 m/s^2 */
-        TEST_ASSERT_EQUAL_INT(EKF_ERR_RANGE, att_update_accel(&f, bad));
+        TEST_ASSERT_EQUAL_INT(EKF_ERR_RANGE, att_update_accel(&f, bad, EKF_C(0.01)));
         bad[k] = EKF_C(5001); /* mag_range 5000 */
-        TEST_ASSERT_EQUAL_INT(EKF_ERR_RANGE, att_update_mag(&f, bad));
+        TEST_ASSERT_EQUAL_INT(EKF_ERR_RANGE, att_update_mag(&f, bad, EKF_C(0.01)));
     }
-    TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_update_gyro(&f, NULL));
-    TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_update_accel(&f, NULL));
-    TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_update_mag(&f, NULL));
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_update_gyro(&f, NULL, EKF_C(0.01)));
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_update_accel(&f, NULL, EKF_C(0.01)));
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_update_mag(&f, NULL, EKF_C(0.01)));
     TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_step(&f, NULL, NULL));
     TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_step(NULL, NULL, NULL));
     assert_unchanged(&f, &s);

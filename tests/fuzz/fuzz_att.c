@@ -183,9 +183,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 
         switch (call) {
         case CALL_PREDICT: st = att_predict(&f, smp.dt); break;
-        case CALL_GYRO: st = att_update_gyro(&f, smp.gyro); break;
-        case CALL_ACCEL: st = att_update_accel(&f, smp.accel); break;
-        case CALL_MAG: st = att_update_mag(&f, smp.mag); break;
+        case CALL_GYRO: st = att_update_gyro(&f, smp.gyro, smp.dt); break;
+        case CALL_ACCEL: st = att_update_accel(&f, smp.accel, smp.dt); break;
+        case CALL_MAG: st = att_update_mag(&f, smp.mag, smp.dt); break;
         case CALL_ALIGN: st = att_align(&f, smp.accel, (smp.valid & ATT_HAS_MAG) ? smp.mag : NULL); break;
         default: st = att_step(&f, &smp, &rep); break;
         }

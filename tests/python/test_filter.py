@@ -185,5 +185,5 @@ def test_help_explains_units():
         for w in words:
             assert w in doc, f"help({obj.__name__}) does not mention {w!r}"
     info = attekf.setting_info()
-    assert info["accel_noise"]["unit"] == "m/s^2" and "default" in info["gyro_noise"]
+    assert info["accel_noise"]["unit"] == "m/s^2*sqrt(s)" and "default" in info["gyro_noise"]
     assert attekf.default_settings("double")["align_samples"] == 10
