@@ -28,6 +28,10 @@ Fair start: Madgwick, Mahony and Fusion start from the same initial attitude, co
 the mean accelerometer and magnetometer of the first `init_samples` samples (default 10, our
 filter's align_samples) (6D: from the accelerometer only, heading 0). VQF initialises itself
 (its first samples), our filter aligns itself from its first align_samples samples.
+
+A magnetometer row of NaN (no sample at that instant, e.g. a slower magnetometer) is passed as
+each method's own "no magnetometer sample": [0 0 0] for VQF, the magnetometer-free update for
+Fusion, Madgwick and Mahony (ours: the binding clears ATT_HAS_MAG).
 """
 
 from __future__ import annotations
@@ -137,7 +141,10 @@ def _run_vqf(rec: Recording, m, cfg):
     ts = 1.0 / rec.rate_hz
     gyr = np.ascontiguousarray(rec.gyr, dtype=np.float64)
     acc = np.ascontiguousarray(rec.acc, dtype=np.float64)
-    mag = None if m.six_d or rec.mag is None else np.ascontiguousarray(rec.mag, dtype=np.float64)
+    mag = None
+    if not (m.six_d or rec.mag is None):
+        # a NaN row (no magnetometer sample) is [0 0 0] for VQF, which skips such samples
+        mag = np.ascontiguousarray(np.where(np.isfinite(rec.mag), rec.mag, 0.0), dtype=np.float64)
     t0 = time.process_time()
     if m.key.startswith("vqf-online"):
         f = vqf.VQF(ts)
@@ -176,9 +183,10 @@ def _run_fusion(rec: Recording, m, cfg):
     n = len(rec)
     q = np.empty((n, 4))
     t0 = time.process_time()
+    has_mag = np.zeros(n, bool) if mag is None else np.isfinite(mag).all(axis=1)
     for i in range(n):
         g = bias.update(gyr[i]) if bias is not None else gyr[i]
-        if mag is None:
+        if not has_mag[i]:        # 6D, or no magnetometer sample (NaN row)
             ahrs.update_no_magnetometer(g, acc[i])
         else:
             ahrs.update(g, acc[i], mag[i])
@@ -218,9 +226,10 @@ def _run_ahrs(rec: Recording, m, cfg):
         for i in range(1, n):
             q[i] = upd(q[i - 1], gyr[i], acc[i])
     else:
-        upd = f.updateMARG
+        has_mag = np.isfinite(mag).all(axis=1)   # a NaN row: no magnetometer sample
         for i in range(1, n):
-            q[i] = upd(q[i - 1], gyr[i], acc[i], mag[i])
+            q[i] = (f.updateMARG(q[i - 1], gyr[i], acc[i], mag[i]) if has_mag[i]
+                    else f.updateIMU(q[i - 1], gyr[i], acc[i]))
     sec = time.process_time() - t0
     if m.family == "madgwick":
         q = nwu_to_enu(q)
