@@ -30,8 +30,11 @@ filter's align_samples) (6D: from the accelerometer only, heading 0). VQF initia
 (its first samples), our filter aligns itself from its first align_samples samples.
 
 A magnetometer row of NaN (no sample at that instant, e.g. a slower magnetometer) is passed as
-each method's own "no magnetometer sample": [0 0 0] for VQF, the magnetometer-free update for
-Fusion, Madgwick and Mahony (ours: the binding clears ATT_HAS_MAG).
+each method's own "no magnetometer sample": [0 0 0] for VQF online and Fusion (both skip a
+zero vector), the magnetometer-free update for Madgwick and Mahony (ours: the binding clears
+ATT_HAS_MAG). VQF offline
+takes a heading from every row, so there such a row is interpolated between the nearest
+samples.
 """
 
 from __future__ import annotations
@@ -142,17 +145,30 @@ def _run_vqf(rec: Recording, m, cfg):
     gyr = np.ascontiguousarray(rec.gyr, dtype=np.float64)
     acc = np.ascontiguousarray(rec.acc, dtype=np.float64)
     mag = None
+    online = m.key.startswith("vqf-online")
     if not (m.six_d or rec.mag is None):
-        # a NaN row (no magnetometer sample) is [0 0 0] for VQF, which skips such samples
-        mag = np.ascontiguousarray(np.where(np.isfinite(rec.mag), rec.mag, 0.0), dtype=np.float64)
+        mag = np.ascontiguousarray(_vqf_mag(rec.mag, online), dtype=np.float64)
     t0 = time.process_time()
-    if m.key.startswith("vqf-online"):
+    if online:
         f = vqf.VQF(ts)
         out = f.updateBatch(gyr, acc, mag) if mag is not None else f.updateBatch(gyr, acc)
     else:
         out = vqf.offlineVQF(gyr, acc, mag, ts)
     sec = time.process_time() - t0
     return np.asarray(out["quat6D" if m.six_d else "quat9D"], dtype=np.float64), sec, {}
+
+
+def _vqf_mag(mag: np.ndarray, online: bool) -> np.ndarray:
+    """Magnetometer rows for VQF: a NaN row (no sample) is [0 0 0], which VQF's causal filter
+    skips; its offline variant uses every row (a heading from each), so there a missing row is
+    interpolated linearly between the nearest samples (held at the ends)."""
+    ok = np.isfinite(mag).all(axis=1)
+    if ok.all():
+        return mag
+    if online or not ok.any():
+        return np.where(ok[:, None], mag, 0.0)
+    idx = np.arange(len(mag))
+    return np.stack([np.interp(idx, idx[ok], mag[ok, i]) for i in range(3)], axis=1)
 
 
 def _run_fusion(rec: Recording, m, cfg):
@@ -183,10 +199,13 @@ def _run_fusion(rec: Recording, m, cfg):
     n = len(rec)
     q = np.empty((n, 4))
     t0 = time.process_time()
-    has_mag = np.zeros(n, bool) if mag is None else np.isfinite(mag).all(axis=1)
+    if mag is not None:
+        # no sample (NaN row): a zero vector, which Fusion's update skips (its magnetometer-free
+        # update would reset the heading to 0 while the filter initialises)
+        mag = np.where(np.isfinite(mag), mag, 0.0)
     for i in range(n):
         g = bias.update(gyr[i]) if bias is not None else gyr[i]
-        if not has_mag[i]:        # 6D, or no magnetometer sample (NaN row)
+        if mag is None:
             ahrs.update_no_magnetometer(g, acc[i])
         else:
             ahrs.update(g, acc[i], mag[i])

@@ -217,6 +217,10 @@ def slerp_truth(t: np.ndarray, q: np.ndarray, tau: np.ndarray) -> np.ndarray:
     angle = 2.0 * np.arctan2(s, w)
     axis = np.where(s > 0, rel[:, 1:] / np.where(s > 0, s, 1.0), 0.0)
     out = quat_normalize(quat_mul(q0, quat_from_rotvec(axis * angle * u)))
+    # on a truth instant: that sample, whatever its neighbour holds
+    at0, at1 = (u[:, 0] < 1e-9) & np.isfinite(q[i]).all(axis=1), (u[:, 0] > 1 - 1e-9) & np.isfinite(q[i + 1]).all(axis=1)
+    out[at0] = q[i][at0]
+    out[at1] = q[i + 1][at1]
     outside = (tau < t[0] - 1e-12) | (tau > t[-1] + 1e-12)
     out[outside] = np.nan
     return out
@@ -312,11 +316,11 @@ def regular_feed(rec: Recording, tolerance: float = 0.25) -> Tuple[Recording, Op
         raise ValueError(f"{rec.source or 'recording'}: no nominal sample rate")
     pos = (rec.t - rec.t[0]) * rate
     slots = np.rint(pos).astype(np.int64)
-    if np.array_equal(slots, np.arange(len(rec))):
-        return rec, None
     if np.any(np.abs(pos - slots) > tolerance) or np.any(np.diff(slots) < 1):
         raise ValueError(f"{rec.source or 'recording'}: timestamps are not on a grid of {rate:g} Hz "
                          "(a fixed-rate method cannot run on it)")
+    if np.array_equal(slots, np.arange(len(rec))):
+        return rec, None
     src = np.searchsorted(slots, np.arange(slots[-1] + 1), side="left")
 
     def pick(a):

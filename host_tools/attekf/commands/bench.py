@@ -255,7 +255,7 @@ def run(args: argparse.Namespace) -> int:
             try:
                 cfg.transform.apply(rec)       # a recording too short for it: said now, not in a worker
             except ValueError as exc:
-                raise InputError(f"{p}: {exc}") from None
+                raise InputError(str(exc)) from None      # names the file
         return _bench(args, paths, methods, cfg, out, plan)
 
 

@@ -121,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
                 try:
                     tf.apply(rec)
                 except ValueError as exc:
-                    raise InputError(f"{p}: {tf.label()}: {exc}") from None
+                    raise InputError(str(exc)) from None      # names the file
     log = (lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr))
     with bar(None, "cv runs", args.quiet, unit="run") as pb:
         result = cv.run_cv(paths, args.data, grid, base, args.scalar, args.jobs, pb.update, log, tfs)
