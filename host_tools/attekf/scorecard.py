@@ -12,9 +12,8 @@ task of a process pool; every task is a pure function of its arguments (seeds in
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass, field
-from typing import Dict, List, Optional, Sequence, Tuple
+from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 

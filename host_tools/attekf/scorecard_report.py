@@ -162,8 +162,8 @@ def motion_rows(results: List[dict]) -> List[Row]:
     for part in ("flips", "tumbles"):
         for (rate, peak), rs in sorted(_cells(results, part).items()):
             where = f"{rate:g} Hz {peak:g} deg/s"
-            part_text = (f"{part} ({len(rs)} runs per cell; {'approach to the vertical 0-5 deg; ' if part == 'flips' else ''}"
-                         "deg): median / p90 / max")
+            approach = "approach to the vertical 0-5 deg; " if part == "flips" else ""
+            part_text = f"{part} ({len(rs)} runs per cell; {approach}deg): median / p90 / max"
             h = {k: R.quantiles([r["per"][k]["heading_change"] for r in rs]) for k in ("ours-6d", "vqf-online-6d")}
             ok = None if not h["ours-6d"]["n"] else bool(h["ours-6d"]["p90"] <= t["heading_p90"]
                                                          and h["ours-6d"]["max"] <= t["heading_max"])

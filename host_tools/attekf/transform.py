@@ -218,7 +218,8 @@ def slerp_truth(t: np.ndarray, q: np.ndarray, tau: np.ndarray) -> np.ndarray:
     axis = np.where(s > 0, rel[:, 1:] / np.where(s > 0, s, 1.0), 0.0)
     out = quat_normalize(quat_mul(q0, quat_from_rotvec(axis * angle * u)))
     # on a truth instant: that sample, whatever its neighbour holds
-    at0, at1 = (u[:, 0] < 1e-9) & np.isfinite(q[i]).all(axis=1), (u[:, 0] > 1 - 1e-9) & np.isfinite(q[i + 1]).all(axis=1)
+    at0 = (u[:, 0] < 1e-9) & np.isfinite(q[i]).all(axis=1)
+    at1 = (u[:, 0] > 1 - 1e-9) & np.isfinite(q[i + 1]).all(axis=1)
     out[at0] = q[i][at0]
     out[at1] = q[i + 1][at1]
     outside = (tau < t[0] - 1e-12) | (tau > t[-1] + 1e-12)

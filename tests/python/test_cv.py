@@ -55,7 +55,8 @@ def test_consider_choice_is_the_cheapest_that_covers():
 # Over rates (--decimate / --resample)
 # ---------------------------------------------------------------------------------------------
 def test_scores_and_coverage_over_rates():
-    rows = [("a", {"total": 1.0, "heading": 2.0}), ("a", {"total": 3.0, "heading": 2.0}), ("b", {"total": 5.0, "heading": 1.0})]
+    rows = [("a", {"total": 1.0, "heading": 2.0}), ("a", {"total": 3.0, "heading": 2.0}),
+            ("b", {"total": 5.0, "heading": 1.0})]
     assert cv._per_trial_mean(rows) == {"a": {"total": 2.0, "heading": 2.0}, "b": {"total": 5.0, "heading": 1.0}}
     tables = [{(0,): ([99.0, 98.0], [0.2, 0.4])}, {(0,): ([97.0, 99.5], [0.4, 0.4])}]
     assert cv._merge_tables(tables) == {(0,): ([97.0, 98.0], [pytest.approx(0.3), pytest.approx(0.4)])}
