@@ -120,6 +120,8 @@ typedef struct {
     uint8_t tilt_ok;            /* last accelerometer update: fused, no linear acceleration,
                                    every innovation within 3 sigma (heading resets need it) */
     ekf_scalar_t last_dt;       /* s, of the last prediction (time base of the running means) */
+    ekf_scalar_t dt_nom;        /* s: the sample interval without gaps (a running mean of the
+                                   steps that are not gaps; 0 before the first) */
     att_rest_t rest;            /* rest detector and gyroscope offset */
     att_bias_t bias;            /* gyroscope offset in motion (residual of the rest offset) */
     att_consider_t consider;    /* error sources carried in the reported covariance only */
