@@ -146,20 +146,27 @@ def _legend_extra(tr: TrialEval):
 # ---------------------------------------------------------------------------------------------
 # The figure
 # ---------------------------------------------------------------------------------------------
-def plot_trial(tr: TrialEval, path: str, dpi: int = 110) -> str:
-    """Writes the trial's figure (module docstring) as a PNG to path (atomically); returns path."""
+PLOT_STEPS = 5  # progress steps of plot_trial: the four rows of panels, then the PNG
+
+
+def plot_trial(tr: TrialEval, path: str, dpi: int = 110, progress=None) -> str:
+    """Writes the trial's figure (module docstring) as a PNG to path (atomically); returns path.
+    progress(1) is called PLOT_STEPS times along the way."""
     from .outputs import atomic_path
-    fig = trial_figure(tr)
+    fig = trial_figure(tr, progress)
     try:
         with atomic_path(path) as tmp:
             fig.savefig(tmp, dpi=dpi, format="png")
+        if progress is not None:
+            progress(1)
     finally:
         plt.close(fig)
     return path
 
 
-def trial_figure(tr: TrialEval):
-    """The trial's figure (module docstring); the caller closes it."""
+def trial_figure(tr: TrialEval, progress=None):
+    """The trial's figure (module docstring); the caller closes it. progress(1) after each of
+    the four rows of panels."""
     t = tr.t
     fig, axes = plt.subplots(4, 2, figsize=(14, 10.5), sharex=True, constrained_layout=True,
                              gridspec_kw={"height_ratios": [1, 1, 1, 1.1]})
@@ -207,6 +214,8 @@ def trial_figure(tr: TrialEval):
         if k == 0:
             ax.set_title("Euler-angle error and the filter's ±3σ", fontsize=10)
             ax.legend(loc="upper right", fontsize=7)
+        if progress is not None:
+            progress(1)
 
     ax = axes[3, 0]
     _background(ax, tr)
@@ -235,6 +244,8 @@ def trial_figure(tr: TrialEval):
     axes[3, 1].set_xlabel("t (s)")
     if len(t):
         axes[0, 0].set_xlim(t[0], t[-1])
+    if progress is not None:
+        progress(1)
     return fig
 
 
