@@ -2,8 +2,8 @@
 package that installs it (pyproject.toml, [project.optional-dependencies]). The filter
 itself (import attekf) needs numpy only.
 
-    require("h5py", "HDF5 files")  ->  MissingExtra: "HDF5 files need the Python package h5py:
-                                        pip install 'attekf[tools]'"
+    require("h5py", "HDF5 files")  ->  MissingExtra: "the Python package h5py is needed for
+                                        HDF5 files: pip install 'attekf[tools]'"
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ def missing(modules: Iterable[str]) -> List[str]:
 
 def message(module: str, what: str, extra: str = "") -> str:
     dist, default_extra = PACKAGES.get(module, (module, "all"))
-    return f"{what} needs the Python package {dist}: pip install 'attekf[{extra or default_extra}]'"
+    return f"the Python package {dist} is needed for {what}: pip install 'attekf[{extra or default_extra}]'"
 
 
 def require(module: str, what: str, extra: str = "") -> None:

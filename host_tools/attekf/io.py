@@ -23,7 +23,7 @@ import json
 import math
 import os
 from dataclasses import dataclass, field
-from typing import Callable, Dict, List, Optional
+from typing import Callable, Dict, List, Optional, Sequence
 
 import numpy as np
 
@@ -498,10 +498,14 @@ def write_recording(path: str, rec: Recording, progress: Optional[Callable[[int]
 def write_output_csv(path: str, t: np.ndarray, euler: np.ndarray, var: Optional[np.ndarray] = None,
                      flags: Optional[np.ndarray] = None, status: Optional[np.ndarray] = None,
                      extra: Optional[Dict[str, np.ndarray]] = None,
-                     progress: Optional[Callable[[int], None]] = None) -> None:
+                     progress: Optional[Callable[[int], None]] = None,
+                     order: Optional[List[str]] = None, full_precision: Sequence[str] = ()) -> None:
     """Estimator output: t_s, roll_rad, pitch_rad, yaw_rad, [var_roll_rad2, var_pitch_rad2,
-    var_yaw_rad2], [flags], [status], [extra columns]. NaN (no estimate) is an empty cell;
-    no value may be infinite. progress(k): called with the number of rows just written."""
+    var_yaw_rad2], [flags], [status], [extra columns], or the columns in `order` (every
+    column once). NaN (no estimate) is an empty cell; no value may be infinite. Values have
+    10 significant digits, t_s and the extra columns named in full_precision 17 (every digit
+    of a double: epoch times keep their fraction). progress(k): called with the number of
+    rows just written."""
     n = t.shape[0]
     euler = np.asarray(euler, dtype=np.float64)
     if euler.shape != (n, 3):
@@ -530,7 +534,12 @@ def write_output_csv(path: str, t: np.ndarray, euler: np.ndarray, var: Optional[
             raise ValueError(f"{name}: shape {a.shape}, expected ({n},)")
         header.append(name)
         cols.append(a)
-        kinds.append("i" if np.issubdtype(a.dtype, np.integer) else "f")
+        kinds.append("i" if np.issubdtype(a.dtype, np.integer) else "t" if name in full_precision else "f")
+    if order is not None:
+        if sorted(order) != sorted(header):
+            raise ValueError(f"order: {order} is not a permutation of the columns {header}")
+        at = [header.index(c) for c in order]
+        header, cols, kinds = order, [cols[k] for k in at], [kinds[k] for k in at]
     for name, a, kind in zip(header, cols, kinds):
         if kind != "i" and np.isinf(a).any():
             raise ValueError(f"{name}: infinite value at row {int(np.argmax(np.isinf(a)))} (NaN = no value)")

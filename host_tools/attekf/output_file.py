@@ -42,7 +42,11 @@ def write_result_csv(path: str, res, progress: Optional[Callable[[int], None]] =
     extra.update({f"sigma_{a}_rad": sigma[:, k] for k, a in enumerate(ANGLES)})
     extra.update({f"gyro_bias_{a}_rad_s": res.gyro_bias[:, k] for k, a in enumerate(AXES)})
     extra.update({f"gyro_bias_sigma_{a}_rad_s": res.gyro_bias_sigma[:, k] for k, a in enumerate(AXES)})
-    write_output_csv(path, res.t, res.euler, var, res.flags, res.status[:, 0], extra=extra, progress=progress)
+    order = (["t_s", *COLS_QUAT, *COLS_EULER] + [f"sigma_{a}_rad" for a in ANGLES] + list(COLS_VAR)
+             + [f"gyro_bias_{a}_rad_s" for a in AXES] + [f"gyro_bias_sigma_{a}_rad_s" for a in AXES]
+             + ["flags", "status"])
+    write_output_csv(path, res.t, res.euler, var, res.flags, res.status[:, 0], extra=extra, progress=progress,
+                     order=order)
 
 
 def write_result_hdf5(path: str, res) -> None:

@@ -54,7 +54,7 @@ def run_command(command: str, body: Callable[[], int]) -> int:
         root = (exc.name or "").split(".")[0]
         if root not in PACKAGES:
             raise
-        _say(command, f"error: {message(root, 'this')}")
+        _say(command, f"error: {message(root, f'attekf {command}')}")
         return 2
     except BrokenPipeError:
         # the reader of stdout went away (attekf eval ... | head): no traceback at exit

@@ -94,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
     if args.output_csv and len(files) != 1:
         raise UsageError(f"--output-csv scores one recording, {len(files)} given")
     if args.out and not args.no_plot:
-        require("matplotlib", "plots (or --no-plot)", "plots")
+        require("matplotlib", "the plots of attekf eval (or --no-plot)", "plots")
     from ..outputs import Outputs
     with Outputs() as out:
         out.inputs(files + [args.output_csv, args.settings])

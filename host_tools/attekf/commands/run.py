@@ -95,7 +95,12 @@ def run(args: argparse.Namespace) -> int:
         target = out.file(args.out, "-o")
         with bar(None, f"reading {os.path.basename(args.recording)}", args.quiet, unit="row") as pb:
             rec = read_recording(args.recording, check_units=not args.no_unit_check, progress=pb.update)
-        f = attekf.Filter(settings, args.scalar, frame=args.frame, mounting=args.mounting)
+        try:
+            f = attekf.Filter(settings, args.scalar, frame=args.frame, mounting=args.mounting)
+        except ValueError as exc:
+            if not str(exc).startswith("mounting:"):
+                raise
+            raise UsageError(f"--{exc}") from None
         with bar(len(rec), rec.name, args.quiet, unit="sample") as pb:
             res = f.run_recording(rec, use_mag=not args.no_mag, progress=pb.update)
         with bar(len(rec), f"writing {os.path.basename(args.out)}", args.quiet, unit="row") as pb:
