@@ -7,8 +7,9 @@ commit, the versions and the machine (docs/host_tools.md, "Speed beside VQF and 
     .venv/bin/python scripts/bench_python_api.py [--trial NAME] [--repeat N]
 
 Every variant runs --repeat times (default 7) over the whole recording; the table gives the
-best run's wall-clock rate (samples/s), which is the least disturbed by other load on the
-machine, and the median's. The per-sample loops read the quaternion after every sample (what
+best run's rate (samples/s of the process's CPU time, time.process_time: every variant is one
+thread, and CPU time leaves out the waits for a core that other load on the machine causes),
+and the median run's. The per-sample loops read the quaternion after every sample (what
 a user of the API does); the batch calls return every sample's quaternion. attekf's "C step"
 row is the CPU time inside its C loop (Result.c_seconds): the filter's own cost, without
 Python. The recording is a BROAD trial (ATTEKF_BROAD_DIR or ../shared/data/broad), 9D (with
@@ -123,12 +124,13 @@ def main() -> int:
     for label, (kind, run) in table.items():
         times = []
         for _ in range(args.repeat):
-            t0 = time.perf_counter()
+            t0 = time.process_time()
             run()
-            times.append(time.perf_counter() - t0)
+            times.append(time.process_time() - t0)
         rows.append((label, kind, n / min(times), n / statistics.median(times)))
         print(f"  {label}: {n / min(times) / 1e3:.0f} k samples/s", file=sys.stderr)
-    print(f"{name}: {n} samples at {rate:g} Hz, 9D; best and median of {args.repeat} runs; {header}\n")
+    print(f"{name}: {n} samples at {rate:g} Hz, 9D; CPU time, best and median of {args.repeat} runs; "
+          f"{header}\n")
     print("| API | call | best, k samples/s | median, k samples/s |")
     print("|---|---|---:|---:|")
     for label, kind, best, med in rows:

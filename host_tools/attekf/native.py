@@ -352,7 +352,7 @@ def run_core(lib: Library, core, t: np.ndarray, dt: np.ndarray, gyr: np.ndarray,
         c_seconds += time.process_time() - t0
         if progress is not None:
             progress(rows.stop - rows.start)
-    codes = np.unique(out["status"])
+    codes = np.flatnonzero(np.bincount(out["status"].ravel(), minlength=1))   # the codes that occur
     mag_absent = n if mag is None else int(np.all(np.isnan(mag), axis=1).sum())
     return Result(t=t, scalar=lib.scalar, frame=frame, settings=lib.settings_dict(core.settings()),
                   diag=dict(zip(lib.diag_names, core.diag())), diag_values=_diag_values(lib, core),
