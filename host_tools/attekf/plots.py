@@ -208,12 +208,20 @@ def trial_figure(tr: TrialEval, progress=None):
             ax.plot(t, err, color="tab:red", lw=0.6, label="estimate − truth", zorder=2)
             n = mark_beyond(ax, t, err, -lim, lim, "tab:red")
             _note_beyond(ax, n, int(np.isfinite(err).sum()), f"±{lim:.3g}°")
+        elif tr.var_euler is not None:   # no truth: the filter's own band, and say so
+            s3 = 3.0 * np.degrees(np.sqrt(tr.var_euler[:, k]))
+            finite = s3[np.isfinite(s3)]
+            lim = max(1.2 * float(np.percentile(finite, 95)), 1e-3) if finite.size else 1.0
+            ax.fill_between(t, -s3, s3, color="tab:green", alpha=0.25, lw=0, label="±3σ (filter)")
+            ax.text(0.01, 0.96, "no ground truth: no error, the filter's ±3σ only", transform=ax.transAxes,
+                    fontsize=7, va="top")
         ax.set_ylim(-lim, lim)
         ax.set_ylabel(f"{ang} error (°)")
         ax.grid(alpha=0.3)
         if k == 0:
             ax.set_title("Euler-angle error and the filter's ±3σ", fontsize=10)
-            ax.legend(loc="upper right", fontsize=7)
+            if ax.get_legend_handles_labels()[0]:
+                ax.legend(loc="upper right", fontsize=7)
         if progress is not None:
             progress(1)
 

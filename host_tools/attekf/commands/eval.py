@@ -211,7 +211,7 @@ def _notes(trials) -> List[str]:
         c = tr.counts
         parts = []
         if not tr.has_truth:
-            parts.append("no ground truth: nothing scored")
+            parts.append("no ground truth: nothing scored (attekf run writes the estimator's output)")
         for key, label in (("movement_without_truth", "movement samples without truth"),
                            ("movement_without_estimate", "movement samples without estimate"),
                            ("refused", "samples refused by the estimator"),
