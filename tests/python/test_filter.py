@@ -268,3 +268,28 @@ def test_help_explains_units():
     info = attekf.setting_info()
     assert info["accel_noise"]["unit"] == "m/s^2*sqrt(s)" and "default" in info["gyro_noise"]
     assert attekf.default_settings("double")["align_samples"] == 10
+
+
+def test_a_batch_lets_other_threads_run_and_guards_its_filter():
+    """The batch runner releases the GIL (other threads run meanwhile) and marks its filter
+    busy: using that filter from another thread then is a RuntimeError, not a data race."""
+    import threading
+    n = 400_000
+    rng = np.random.default_rng(3)
+    gyr = rng.normal(0, 0.1, (n, 3))
+    acc = np.tile([0.0, 0.0, 9.81], (n, 1)) + rng.normal(0, 0.1, (n, 3))
+    dt = np.full(n, 0.005)
+    f = attekf.Filter(dt=0.005)
+    core = f._core
+    th = threading.Thread(target=lambda: core.run(dt, gyr, acc, *[None] * 10))
+    seen = []
+    th.start()
+    while th.is_alive() and not seen:
+        try:
+            f.diag                               # reads the filter: refused while the batch runs
+        except RuntimeError as exc:
+            seen.append(str(exc))
+    th.join()
+    assert seen == ["this filter is running a batch in another thread"]
+    assert f.diag["steps"] == n - 10        # only the batch's samples went in (10 aligned it)
+
