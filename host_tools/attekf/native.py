@@ -77,17 +77,16 @@ def module_path(scalar: str) -> Path:
     """The extension module file of a scalar build (ATTEKF_LIB, the package, the build)."""
     if scalar not in SCALARS:
         raise ValueError(f"scalar must be one of {', '.join(SCALARS)}, not {scalar!r}")
+    expected = f"_core_{SCALARS[scalar]}{importlib.machinery.EXTENSION_SUFFIXES[0]}"
     env = os.environ.get("ATTEKF_LIB")
     if env:
         p = Path(env)
-        if p.is_dir():
-            return _module_file(p, scalar) or p / f"_core_{SCALARS[scalar]}(extension suffix)"
-        return p
+        return (_module_file(p, scalar) or p / expected) if p.is_dir() else p
     for directory in (Path(__file__).resolve().parent, build_dir()):
         found = _module_file(directory, scalar)
         if found is not None:
             return found
-    return Path(__file__).resolve().parent / f"_core_{SCALARS[scalar]}{importlib.machinery.EXTENSION_SUFFIXES[0]}"
+    return Path(__file__).resolve().parent / expected
 
 
 def _not_built(path: Path) -> NativeError:
