@@ -108,15 +108,22 @@ typedef struct {
     ekf_scalar_t mag_ref_norm;  /* in use (set or learned) */
     ekf_scalar_t mag_ref_dip;
     ekf_scalar_t mag_tan2_dip;  /* tan^2 of mag_ref_dip (set with the reference) */
+    ekf_scalar_t mag_avg_norm;  /* running means of the field's norm (mag units) and dip (rad) */
+    ekf_scalar_t mag_avg_dip;
+    ekf_scalar_t mag_new_clock; /* s: the reference's age while it settles, then how long a
+                                   field off it has stayed consistent with itself */
     ekf_scalar_t align_acc[3];  /* sums during alignment */
     ekf_scalar_t align_mag[3];
     uint16_t align_count;
     uint16_t align_mag_count;
     ekf_scalar_t gated_time[3]; /* s of continuous gating: gyro, accel, mag */
     ekf_scalar_t accel_dev_var; /* running mean of ( |a| - g )^2, (m/s^2)^2 */
+    ekf_scalar_t accel_hf_var;  /* running mean of |sample - low-pass|^2, (m/s^2)^2: the
+                                   accelerometer's short-term motion (steps, impacts, shaking) */
     ekf_scalar_t accel_lp[3];   /* low-passed specific force, body frame, m/s^2 (last stage) */
     ekf_scalar_t accel_lp1[3];  /* its first stage when accel_lpf_order is 2, m/s^2 */
     uint8_t accel_lp_valid;     /* accel_lp holds a sample */
+    uint8_t mag_settled;        /* the learned reference has settled (track_reference) */
     uint8_t tilt_ok;            /* last accelerometer update: fused, no linear acceleration,
                                    every innovation within 3 sigma (heading resets need it) */
     ekf_scalar_t last_dt;       /* s, of the last prediction (time base of the running means) */

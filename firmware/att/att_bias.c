@@ -57,7 +57,7 @@ void att_bias_restart(att_bias_t *bf)
 #define D1(a, j) ((a) * 6 + (j))
 
 void att_bias_predict(att_bias_t *bf, const att_bias_settings_t *s, const ekf_scalar_t d1[ATT_GEN_F1_NNZ],
-                      const ekf_scalar_t up[3], ekf_scalar_t dt)
+                      ekf_scalar_t dt)
 {
     /* The angles advance with the body rates w, which contain the residual offset one for
      * one (the gyro update makes them follow the gyro): d angles+ / d b = F_aa V + F_aw, the
@@ -83,15 +83,6 @@ void att_bias_predict(att_bias_t *bf, const att_bias_settings_t *s, const ekf_sc
         bf->Pb[j] = ekf_add(bf->Pb[j], q);
     }
     bf->hold = ekf_max(ekf_sub(bf->hold, dt), EKF_C(0));
-    if (s->motion < 2u && s->vertical_tau > EKF_C(0)) {
-        /* the accelerometer sees the offset's vertical part only through the body's turns,
-         * weakly, and what it learns there turns the heading: let it decay */
-        const ekf_scalar_t k = ekf_div(dt, ekf_add(s->vertical_tau, dt));
-        const ekf_scalar_t bv = ekf_mul(k, ekf_mac(ekf_mac(ekf_mul(bf->b[0], up[0]), bf->b[1], up[1]), bf->b[2], up[2]));
-        for (j = 0; j < 3; ++j) {
-            bf->b[j] = ekf_sub(bf->b[j], ekf_mul(bv, up[j]));
-        }
-    }
 }
 
 int att_bias_update(att_bias_t *bf, int learn, const ekf_scalar_t h[3], const ekf_scalar_t pht[3], ekf_scalar_t nu,

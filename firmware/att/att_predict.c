@@ -121,11 +121,7 @@ ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scala
     }
     att_cov_scale_diag(&v->cov, ATT_PHID, 3, s->euler_rate_rel);
     gap_noise(v, s, &mo, dt);
-    {
-        /* the earth's vertical in the new body axes */
-        const ekf_scalar_t up[3] = {ekf_neg(mo.t.sth), ekf_mul(mo.t.sphi, mo.t.cth), ekf_mul(mo.t.cphi, mo.t.cth)};
-        att_bias_predict(&v->bias, &s->bias, d1, up, dt);
-    }
+    att_bias_predict(&v->bias, &s->bias, d1, dt);
     att_consider_predict(&v->consider,
                          ekf_add(ekf_add(ekf_sq(v->x[ATT_P]), ekf_sq(v->x[ATT_Q])), ekf_sq(v->x[ATT_R])),
                          s->angle_walk_rate, ekf_sq(mo.t.secth), dt);

@@ -221,6 +221,14 @@ static ekf_scalar_t accel_vector(att_vars_t *v, const att_settings_t *s, const e
     to_interval_end(v, accel, dt, a);
     if (s->accel_lpf_tau > EKF_C(0)) {
         accel_lp_blend(v, s, a, dt);
+        if (s->accel_adapt_tau > EKF_C(0)) {
+            const ekf_scalar_t k = ekf_div(dt, ekf_add(s->accel_adapt_tau, dt));
+            ekf_scalar_t d2 = EKF_C(0);
+            for (i = 0; i < 3; ++i) {
+                d2 = ekf_add(d2, ekf_sq(ekf_sub(a[i], v->accel_lp[i])));
+            }
+            v->accel_hf_var = ekf_mac(v->accel_hf_var, k, ekf_sub(d2, v->accel_hf_var));
+        }
         if (!rest) {
             for (i = 0; i < 3; ++i) {
                 a[i] = v->accel_lp[i];
@@ -270,7 +278,7 @@ static ekf_scalar_t accel_variance(att_vars_t *v, const att_settings_t *s, ekf_s
  * each innovation's variance (docs/derivation.md, "Gyroscope offset in motion"). */
 static ekf_scalar_t learn_excess(const att_vars_t *v, const att_settings_t *s, ekf_scalar_t dt, int rest)
 {
-    const ekf_scalar_t T = ekf_mul(ekf_mul(ekf_from_int((int32_t)s->accel_lpf_order), s->accel_lpf_tau), s->bias.tmp_alpha);
+    const ekf_scalar_t T = ekf_mul(ekf_from_int((int32_t)s->accel_lpf_order), s->accel_lpf_tau);
     if (rest || !(T > EKF_C(0))) {
         return EKF_C(0);
     }
@@ -288,7 +296,8 @@ static ekf_status_t accel_fuse(att_vars_t *v, const att_settings_t *s, const ekf
 {
     /* beyond the gimbal limit the kinematics are clamped: the innovations then carry the
      * clamp's error, not the offset's */
-    const int learn = s->bias.motion >= 1u && (v->flags & ATT_FLAG_GIMBAL_LOCK) == 0u;
+    const int learn = s->bias.motion >= 1u && (v->flags & ATT_FLAG_GIMBAL_LOCK) == 0u &&
+                      !(v->accel_hf_var > ekf_sq(s->bias.quiet_accel));
     const ekf_scalar_t phi0 = v->x[ATT_PHI], theta0 = v->x[ATT_THETA];
     ekf_scalar_t h[3], hj[6];
     att_trig_t t;
@@ -409,6 +418,48 @@ static void reset_heading(att_vars_t *v, const att_settings_t *s, ekf_scalar_t h
     att_consider_heading_reset(&v->consider);
 }
 
+/* The learned magnetic reference (mag_ref_norm 0): a reference taken at alignment, perhaps
+ * in motion with the tilt still off, settles to the running mean of the field over the first
+ * quarter of mag_new_time; afterwards a field off the reference that stays within the
+ * tolerances of its own running mean for mag_new_time (a new place, not a passing iron)
+ * becomes the reference (docs/derivation.md, "Magnetometer"). */
+static void track_reference(att_vars_t *v, const att_settings_t *s, ekf_scalar_t norm, ekf_scalar_t dip,
+                            ekf_scalar_t dt)
+{
+    const ekf_scalar_t T = s->mag_new_time;
+    ekf_scalar_t k;
+    int settling, off, steady;
+    if (s->mag_ref_norm > EKF_C(0) || !(T > EKF_C(0))) {
+        return;
+    }
+    if (!(v->mag_avg_norm > EKF_C(0))) {
+        v->mag_avg_norm = norm;
+        v->mag_avg_dip = dip;
+    }
+    k = ekf_div(dt, ekf_add(ekf_mul(EKF_C(0.125), T), dt));
+    v->mag_avg_norm = ekf_mac(v->mag_avg_norm, k, ekf_sub(norm, v->mag_avg_norm));
+    v->mag_avg_dip = ekf_mac(v->mag_avg_dip, k, ekf_sub(dip, v->mag_avg_dip));
+    settling = v->mag_new_clock < ekf_mul(EKF_C(0.25), T) && !v->mag_settled;
+    if (settling) {
+        v->mag_new_clock = ekf_add(v->mag_new_clock, dt);
+        att_set_mag_reference(v, v->mag_avg_norm, v->mag_avg_dip);
+        return;
+    }
+    if (!v->mag_settled) {
+        v->mag_settled = 1u;
+        v->mag_new_clock = EKF_C(0);
+    }
+    off = ekf_abs(ekf_sub(ekf_div(norm, v->mag_ref_norm), EKF_C(1))) > s->mag_norm_tol ||
+          ekf_abs(ekf_sub(dip, v->mag_ref_dip)) > s->mag_dip_tol;
+    steady = !(ekf_abs(ekf_sub(ekf_div(norm, v->mag_avg_norm), EKF_C(1))) > s->mag_norm_tol) &&
+             !(ekf_abs(ekf_sub(dip, v->mag_avg_dip)) > s->mag_dip_tol);
+    v->mag_new_clock = (off && steady) ? ekf_add(v->mag_new_clock, dt) : EKF_C(0);
+    if (v->mag_new_clock > T) {
+        att_set_mag_reference(v, v->mag_avg_norm, v->mag_avg_dip);
+        v->mag_new_clock = EKF_C(0);
+    }
+}
+
 ekf_status_t att_stage_mag(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t mag[3], ekf_scalar_t dt)
 {
     ekf_scalar_t lev[3], norm, heading, nu, r_var;
@@ -446,6 +497,7 @@ ekf_status_t att_stage_mag(att_vars_t *v, const att_settings_t *s, const ekf_sca
         ekf_count(&v->diag.mag_fused);
         return EKF_OK;
     }
+    track_reference(v, s, norm, att_mag_dip(lev), dt);
     v->diag.mag_norm_error = ekf_sub(ekf_div(norm, v->mag_ref_norm), EKF_C(1));
     v->diag.mag_dip_error = ekf_sub(att_mag_dip(lev), v->mag_ref_dip);
     if (ekf_abs(v->diag.mag_norm_error) > s->mag_norm_tol || ekf_abs(v->diag.mag_dip_error) > s->mag_dip_tol) {
@@ -480,6 +532,13 @@ ekf_status_t att_stage_mag(att_vars_t *v, const att_settings_t *s, const ekf_sca
     r_var = ekf_div(ekf_mac(ekf_sq(s->mag_heading_noise), v->mag_tan2_dip,
                             ekf_div(ekf_mul(v->accel_dev_var, s->accel_adapt_weight), ekf_sq(s->gravity))),
                     dt);
+    if (s->mag_norm_band > EKF_C(0) && s->mag_dip_band > EKF_C(0)) {
+        /* a field off its reference norm or dip is a disturbed one, and its heading errs with
+         * it (an iron nearby, a magnet on the sensor): trusted less the further it is off */
+        const ekf_scalar_t kn = ekf_div(v->diag.mag_norm_error, s->mag_norm_band);
+        const ekf_scalar_t kd = ekf_div(v->diag.mag_dip_error, s->mag_dip_band);
+        r_var = ekf_mul(r_var, ekf_add(EKF_C(1), ekf_add(ekf_sq(kn), ekf_sq(kd))));
+    }
     /* no gate bypass for the magnetometer (a magnet that passes the norm and dip tests would
      * drag the heading): recovery is the reset above, after mag_reset_time */
     {
