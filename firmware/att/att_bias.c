@@ -135,7 +135,11 @@ int att_bias_update(att_bias_t *bf, int learn, const ekf_scalar_t h[3], const ek
     d0 = ekf_mul(ekf_mul(p0, e), ATT_BIAS_UNIT);
     d1 = ekf_mul(ekf_mul(p1, e), ATT_BIAS_UNIT);
     d2 = ekf_mul(ekf_mul(p2, e), ATT_BIAS_UNIT);
-    /* the angles' error was V b: take the part now known out of them */
+    /* the angles' error was V b: take the part now known out of them, the heading only where
+     * the measurement is of the heading (the magnetometer): from the accelerometer the
+     * heading's share would rest on V's heading row alone, and a wrong offset would turn the
+     * heading faster than the offset itself does (docs/derivation.md, "Gyroscope offset in
+     * motion") */
     for (i = 0; i < ((h[2] != EKF_C(0)) ? 3 : 2); ++i) {
         const ekf_scalar_t *const row = &V[3 * i];
         x_ang[i] = ekf_sub(x_ang[i], ekf_mac(ekf_mac(ekf_mul(row[0], d0), row[1], d1), row[2], d2));
