@@ -124,6 +124,7 @@ typedef struct {
     ekf_scalar_t accel_lp1[3];  /* its first stage when accel_lpf_order is 2, m/s^2 */
     uint8_t accel_lp_valid;     /* accel_lp holds a sample */
     uint8_t mag_settled;        /* the learned reference has settled (track_reference) */
+    uint8_t rate_unmeasured;    /* the last gyro sample was saturated: the rate state is a guess */
     uint8_t tilt_ok;            /* last accelerometer update: fused, no linear acceleration,
                                    every innovation within 3 sigma (heading resets need it) */
     ekf_scalar_t last_dt;       /* s, of the last prediction (time base of the running means) */

@@ -92,14 +92,16 @@ ekf_status_t att_stage_gyro_saturated(att_vars_t *v, const att_settings_t *s, co
     att_bias_restart(&v->bias);
     att_bias_hold(&v->bias, s->bias.hold_time);
     /* the low-passed force is carried over the step with the body rates, which this sample
-     * does not measure: start it again from the next accelerometer sample */
+     * does not measure: start it again from the next sample whose rates are measured */
     v->accel_lp_valid = 0u;
+    v->rate_unmeasured = 1u;
     ekf_count(&v->diag.gyro_saturated);
     return EKF_SKIPPED;
 }
 
 ekf_status_t att_stage_gyro(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t gyro[3], ekf_scalar_t dt)
 {
+    v->rate_unmeasured = 0u;
     ekf_scalar_t gate, r_var;
     ekf_status_t st;
     ekf_innov_t info;
@@ -161,7 +163,8 @@ static void cross3(const ekf_scalar_t a[3], const ekf_scalar_t b[3], ekf_scalar_
 static void to_interval_end(const att_vars_t *v, const ekf_scalar_t vec[3], ekf_scalar_t dt, ekf_scalar_t out[3])
 {
     const ekf_scalar_t own = (v->dt_nom > EKF_C(0)) ? ekf_min(dt, v->dt_nom) : dt;
-    const ekf_scalar_t half = ekf_mul(EKF_C(0.5), own);
+    /* (a saturated gyro leaves the rate state a guess: the sample is taken as it is) */
+    const ekf_scalar_t half = v->rate_unmeasured ? EKF_C(0) : ekf_mul(EKF_C(0.5), own);
     ekf_scalar_t th[3], c1[3], c2[3];
     int i;
     for (i = 0; i < 3; ++i) {
@@ -211,15 +214,17 @@ static void consider_accel(att_vars_t *v, const att_settings_t *s, const ekf_sca
 
 /* The vector the accelerometer stage fuses: at rest the sample itself (no linear
  * acceleration to filter out), else the low-passed force when the low-pass is on (every
- * sample enters it, fused or not), else the sample; each turned to the interval's end. The
- * running linear-acceleration variance follows it. Returns its norm. */
+ * sample enters it, fused or not, but for those of a saturated gyro: the low-pass turns with
+ * the rates, which they do not measure, and starts again after them), else the sample; each
+ * turned to the interval's end. The running linear-acceleration variances follow it. Returns
+ * its norm. */
 static ekf_scalar_t accel_vector(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t accel[3], ekf_scalar_t dt,
                                  int rest, ekf_scalar_t a[3])
 {
     ekf_scalar_t a_norm;
     int i;
     to_interval_end(v, accel, dt, a);
-    if (s->accel_lpf_tau > EKF_C(0)) {
+    if (s->accel_lpf_tau > EKF_C(0) && !v->rate_unmeasured) {
         accel_lp_blend(v, s, a, dt);
         if (s->accel_adapt_tau > EKF_C(0)) {
             const ekf_scalar_t k = ekf_div(dt, ekf_add(s->accel_adapt_tau, dt));
@@ -436,13 +441,19 @@ static void track_reference(att_vars_t *v, const att_settings_t *s, ekf_scalar_t
         v->mag_avg_norm = norm;
         v->mag_avg_dip = dip;
     }
-    k = ekf_div(dt, ekf_add(ekf_mul(EKF_C(0.125), T), dt));
-    v->mag_avg_norm = ekf_mac(v->mag_avg_norm, k, ekf_sub(norm, v->mag_avg_norm));
-    v->mag_avg_dip = ekf_mac(v->mag_avg_dip, k, ekf_sub(dip, v->mag_avg_dip));
+    /* the dip is levelled with the estimated tilt: only samples whose tilt the accelerometer
+     * confirms tell the field's dip */
+    if (v->tilt_ok) {
+        k = ekf_div(dt, ekf_add(ekf_mul(EKF_C(0.125), T), dt));
+        v->mag_avg_norm = ekf_mac(v->mag_avg_norm, k, ekf_sub(norm, v->mag_avg_norm));
+        v->mag_avg_dip = ekf_mac(v->mag_avg_dip, k, ekf_sub(dip, v->mag_avg_dip));
+    }
     settling = v->mag_new_clock < ekf_mul(EKF_C(0.25), T) && !v->mag_settled;
     if (settling) {
-        v->mag_new_clock = ekf_add(v->mag_new_clock, dt);
-        att_set_mag_reference(v, v->mag_avg_norm, v->mag_avg_dip);
+        if (v->tilt_ok) {
+            v->mag_new_clock = ekf_add(v->mag_new_clock, dt);
+            att_set_mag_reference(v, v->mag_avg_norm, v->mag_avg_dip);
+        }
         return;
     }
     if (!v->mag_settled) {
@@ -453,7 +464,7 @@ static void track_reference(att_vars_t *v, const att_settings_t *s, ekf_scalar_t
           ekf_abs(ekf_sub(dip, v->mag_ref_dip)) > s->mag_dip_tol;
     steady = !(ekf_abs(ekf_sub(ekf_div(norm, v->mag_avg_norm), EKF_C(1))) > s->mag_norm_tol) &&
              !(ekf_abs(ekf_sub(dip, v->mag_avg_dip)) > s->mag_dip_tol);
-    v->mag_new_clock = (off && steady) ? ekf_add(v->mag_new_clock, dt) : EKF_C(0);
+    v->mag_new_clock = (off && steady && v->tilt_ok) ? ekf_add(v->mag_new_clock, dt) : EKF_C(0);
     if (v->mag_new_clock > T) {
         att_set_mag_reference(v, v->mag_avg_norm, v->mag_avg_dip);
         v->mag_new_clock = EKF_C(0);
