@@ -175,6 +175,21 @@ typedef struct {
     ekf_status_t mag;
 } att_step_report_t;
 
+/* What the prediction of one att_step did, for a smoother that runs backwards over a
+ * recording (the host tools' Rauch-Tung-Striebel pass, docs/derivation.md, "Smoother"):
+ * the state and covariance before the prediction (after the step's gyroscope update) and
+ * after it (its process noise, gaps and caps included), and the transition Jacobian F of the
+ * mean's map between them (row-major). predicted is 0 for a step that ran no prediction
+ * (aligning, or refused). */
+typedef struct {
+    int predicted;
+    ekf_scalar_t x_pre[ATT_N];
+    ekf_scalar_t P_pre[ATT_N * ATT_N];
+    ekf_scalar_t F[ATT_N * ATT_N];
+    ekf_scalar_t x_pred[ATT_N];
+    ekf_scalar_t P_pred[ATT_N * ATT_N];
+} att_trace_t;
+
 /* Linked as att_init_for_EKF_SCALAR_<type>: see EKF_SCALAR_LINK_NAME in ekf_config.h. */
 #define att_init EKF_SCALAR_LINK_NAME(att_init)
 /* Validates settings and resets the filter to "not aligned". EKF_ERR_SETTINGS if a setting
@@ -241,6 +256,9 @@ ekf_status_t att_align(att_ekf_t *f, const ekf_scalar_t accel[3], const ekf_scal
  * alignment samples have no usable gravity direction, the averaging restarts (EKF_SKIPPED
  * for accel, diag.accel_skipped). */
 ekf_status_t att_step(att_ekf_t *f, const att_sample_t *sample, att_step_report_t *report);
+
+/* att_step, and what its prediction did in *trace (att_trace_t; may be NULL). */
+ekf_status_t att_step_traced(att_ekf_t *f, const att_sample_t *sample, att_step_report_t *report, att_trace_t *trace);
 
 /* The stages, one call each (require an aligned filter; EKF_ERR_NOT_INITIALISED
  * otherwise), under the same contract. */

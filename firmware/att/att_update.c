@@ -17,9 +17,6 @@ static void meas_trig(const att_vars_t *v, att_trig_t *t)
     t->secth = EKF_C(0);
 }
 
-/* 1 for a status that refuses the call (EKF_GATED and EKF_SKIPPED are not errors). */
-static int is_stage_error(ekf_status_t st) { return st != EKF_OK && st != EKF_GATED && st != EKF_SKIPPED; }
-
 /* 1 if an innovation would fail the gate of gate sigmas (a bypassed gate still judges the
  * innovations, so that the bypass lasts until they are consistent again). */
 static int fails_gate(const ekf_innov_t *info, ekf_scalar_t gate)
@@ -372,7 +369,7 @@ ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_s
     var0[1] = att_cov_var(&v->cov, ATT_THETA);
     st = accel_fuse(v, s, a, a_norm, r_var, gate_for(v, s, ATT_SENSOR_ACCEL, s->accel_gate),
                     learn_excess(v, s, dt, rest), &bypass_failed, &consistent);
-    if (is_stage_error(st)) {
+    if (ekf_status_is_error(st)) {
         return st;
     }
     if (att_normalise(v)) {
