@@ -93,7 +93,7 @@ typedef struct {
     uint32_t heading_resets;  /* heading set to the magnetic heading (mag_reset_time) */
     uint32_t gyro_saturated;  /* samples with ATT_GYRO_SATURATED (rate variances raised) */
     ekf_scalar_t gyro_ratio[3];
-    ekf_scalar_t accel_ratio[3];
+    ekf_scalar_t accel_ratio[2]; /* the tangent-plane components: about the roll and pitch axes */
     ekf_scalar_t mag_ratio;
     ekf_scalar_t accel_norm_error; /* last | |a| - g |, m/s^2 */
     ekf_scalar_t mag_norm_error;   /* last |m| / ref - 1 */

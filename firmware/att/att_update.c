@@ -287,11 +287,16 @@ static ekf_scalar_t learn_excess(const att_vars_t *v, const att_settings_t *s, e
     return ekf_div(ekf_mul(ekf_mul(EKF_C(2), ekf_div(v->accel_dev_var, ekf_sq(s->gravity))), T), dt);
 }
 
-/* The three components of the unit vector a / norm, fused sequentially with innovations
- * relinearised about the prior (h and H evaluated once there), which equals the batch
- * update of the 3-vector (docs/derivation.md, "Sequential vector updates"); each fused
- * component also teaches the offset in motion. Returns the first error, else EKF_GATED if a
- * component gated, else EKF_OK; *bypass_failed and *consistent as in att_stage_accel. */
+/* The unit vector a / norm, fused as its two components in the tangent plane of the
+ * predicted gravity direction h: along u_phi = dh/dphi / |dh/dphi| = (0, c_phi, -s_phi) with
+ * H = (c_th, 0, 0) on (phi, theta, psi), and along u_theta = dh/dtheta (a unit vector, at
+ * right angles to u_phi) with H = (0, 1, 0). Both are orthogonal to h (u^T h = 0 makes the
+ * innovation u^T a / norm), and the component along h (the norm) carries no attitude: for
+ * noise isotropic across the components this equals the batch update of the 3-vector
+ * (docs/derivation.md, "Accelerometer"). The second is relinearised about the prior. Each
+ * fused component also teaches the offset in motion. Returns the first error, else
+ * EKF_GATED if a component gated, else EKF_OK; *bypass_failed and *consistent as in
+ * att_stage_accel. */
 static ekf_status_t accel_fuse(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t a[3], ekf_scalar_t norm,
                                ekf_scalar_t r_var, ekf_scalar_t gate, ekf_scalar_t excess, int *bypass_failed,
                                int *consistent)
@@ -300,30 +305,31 @@ static ekf_status_t accel_fuse(att_vars_t *v, const att_settings_t *s, const ekf
      * clamp's error, not the offset's */
     const int learn = s->bias.motion >= 1u && (v->flags & ATT_FLAG_GIMBAL_LOCK) == 0u &&
                       !(v->accel_hf_var > ekf_sq(s->bias.quiet_accel));
-    const ekf_scalar_t phi0 = v->x[ATT_PHI], theta0 = v->x[ATT_THETA];
-    ekf_scalar_t h[3], hj[6];
+    const ekf_scalar_t theta0 = v->x[ATT_THETA];
+    ekf_scalar_t u[2][3];
     att_trig_t t;
     ekf_innov_t info;
     ekf_status_t st, out = EKF_OK;
     int i;
     meas_trig(v, &t);
-    att_gen_accel_h(&t, h);
-    att_gen_accel_jacobian(&t, hj);
-    for (i = 0; i < 3; ++i) {
-        const ekf_scalar_t h3[3] = {hj[2 * i], hj[2 * i + 1], EKF_C(0)};
-        ekf_scalar_t pht[3];
-        ekf_scalar_t nu = ekf_sub(ekf_div(a[i], norm), h[i]);
-        nu = ekf_sub(nu, ekf_mul(hj[2 * i], ekf_sub(v->x[ATT_PHI], phi0)));
-        nu = ekf_sub(nu, ekf_mul(hj[2 * i + 1], ekf_sub(v->x[ATT_THETA], theta0)));
-        {
-            /* the angle rows of P h^T before the update: its gain times S */
-            const ekf_scalar_t p_ff = att_cov_var(&v->cov, ATT_PHI), p_tt = att_cov_var(&v->cov, ATT_THETA);
-            const ekf_scalar_t p_ft = att_cov_get(&v->cov, ATT_PHI, ATT_THETA);
-            pht[0] = ekf_mac(ekf_mul(p_ff, h3[0]), p_ft, h3[1]);
-            pht[1] = ekf_mac(ekf_mul(p_ft, h3[0]), p_tt, h3[1]);
-            pht[2] = ekf_mac(ekf_mul(att_cov_get(&v->cov, ATT_PSI, ATT_PHI), h3[0]),
-                             att_cov_get(&v->cov, ATT_PSI, ATT_THETA), h3[1]);
+    u[0][0] = EKF_C(0);
+    u[0][1] = t.cphi;
+    u[0][2] = ekf_neg(t.sphi);
+    u[1][0] = ekf_neg(t.cth);
+    u[1][1] = ekf_neg(ekf_mul(t.sphi, t.sth));
+    u[1][2] = ekf_neg(ekf_mul(t.cphi, t.sth));
+    for (i = 0; i < 2; ++i) {
+        const ekf_scalar_t h3[3] = {(i == 0) ? t.cth : EKF_C(0), (i == 0) ? EKF_C(0) : EKF_C(1), EKF_C(0)};
+        const int ang = (i == 0) ? ATT_PHI : ATT_THETA;
+        ekf_scalar_t pht[3], nu;
+        nu = ekf_div(ekf_mac(ekf_mac(ekf_mul(u[i][0], a[0]), u[i][1], a[1]), u[i][2], a[2]), norm);
+        if (i == 1) {
+            nu = ekf_sub(nu, ekf_sub(v->x[ATT_THETA], theta0)); /* relinearised about the prior */
         }
+        /* the angle rows of P h^T before the update: its gain times S */
+        pht[0] = ekf_mul(att_cov_get(&v->cov, ATT_PHI, ang), h3[i]);
+        pht[1] = ekf_mul(att_cov_get(&v->cov, ATT_THETA, ang), h3[i]);
+        pht[2] = ekf_mul(att_cov_get(&v->cov, ATT_PSI, ang), h3[i]);
         st = att_cov_update_angles(&v->cov, v->x, h3, nu, r_var, gate, s->var_floor, &info);
         if (st == EKF_OK) {
             (void)att_bias_update(&v->bias, learn, h3, pht, nu, info.variance,
