@@ -128,6 +128,8 @@ typedef struct {
     uint8_t tilt_ok;            /* last accelerometer update: fused, no linear acceleration,
                                    every innovation within 3 sigma (heading resets need it) */
     ekf_scalar_t last_dt;       /* s, of the last prediction (time base of the running means) */
+    att_trig_t trig;            /* sines and cosines (no clamp) of trig_at's roll and pitch, rad: */
+    ekf_scalar_t trig_at[2];    /* left by the prediction for the measurement stage after it */
     ekf_scalar_t dt_nom;        /* s: the sample interval without gaps (a running mean of the
                                    steps that are not gaps; 0 before the first) */
     att_rest_t rest;            /* rest detector and gyroscope offset */
