@@ -7,7 +7,7 @@
 #include <stddef.h>
 #include <string.h>
 
-#include "att_internal.h"
+#include "att_settings.h"
 #include "ekf_util.h"
 
 /* ---- defaults ---- */
