@@ -115,7 +115,7 @@ def test_sdist_carries_the_c_sources_and_nothing_of_the_build(installed):
     rel = {n[len(top) + 1:] for n in names}
     for needed in ("pyproject.toml", "CMakeLists.txt", "native/attekf_native.c", "attekf/filter.py",
                    "csrc/CMakeLists.txt", "csrc/firmware/CMakeLists.txt", "csrc/firmware/att/att.c",
-                   "csrc/firmware/ekf/ekf.c", "csrc/hal/can/attekf.dbc", "csrc/cmake/Warnings.cmake"):
+                   "csrc/firmware/ekf/ekf.c", "csrc/firmware/app/dbc/attekf.dbc", "csrc/cmake/Warnings.cmake"):
         assert needed in rel, f"sdist lacks {needed}"
     assert not [n for n in rel if "__pycache__" in n or ".egg-info" in n or n.startswith(("build/", "csrc/build"))]
     assert "requirements.lock" not in rel

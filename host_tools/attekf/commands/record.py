@@ -20,7 +20,7 @@ HELP = "log a CAN bus (python-can loggers) and decode the estimator's outputs to
 DESCRIPTION = """\
 Listens on a python-can interface (or reads a CAN log with --from-log), writes every frame to a
 log file (-o; format from the extension: .log candump, .asc, .blf, ...), and decodes with
-hal/can/attekf.dbc:
+firmware/app/dbc/attekf.dbc:
   --csv FILE         the node's attitude outputs (ATT_EULER, ATT_RATES, ATT_SIGMA, ATT_STATUS),
                      one row per output, in the estimator-output CSV layout of docs/host_tools.md:
                      t_s (the time of the input sample the output includes, from its IMU_SYNC

@@ -20,7 +20,7 @@ from ..errors import DeviceError, InputError, Interrupted, UsageError
 NAME = "replay"
 HELP = "replay a recording (CSV, BROAD HDF5) or a CAN log onto a python-can interface or into a log"
 DESCRIPTION = """\
-Replays a recorded IMU stream as the node's input frames (hal/can/attekf.dbc: IMU_GYRO,
+Replays a recorded IMU stream as the node's input frames (firmware/app/dbc/attekf.dbc: IMU_GYRO,
 IMU_ACCEL, IMU_MAG, IMU_SYNC per sample; docs/can_protocol.md) onto any python-can interface,
 or writes them to a CAN log file.
 
