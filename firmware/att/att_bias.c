@@ -49,36 +49,34 @@ void att_bias_restart(att_bias_t *bf)
     }
 }
 
-/* Entries of d1 (att_gen_f1_pattern, checked by test_att_bias): the angle rows' columns
- * p, q, r (dt W at the midpoint angles) and phi, theta (dt M, the angles' own coupling). */
-enum {
-    D1_PHI_P = 0, D1_PHI_Q = 1, D1_PHI_R = 2, D1_PHI_PHI = 3, D1_PHI_THETA = 4,
-    D1_THETA_Q = 7, D1_THETA_R = 8, D1_THETA_PHI = 9,
-    D1_PSI_Q = 11, D1_PSI_R = 12, D1_PSI_PHI = 13, D1_PSI_THETA = 14
-};
+/* Entry of d1 (att_gen_f1_pattern, checked by test_att_bias): angle row a (0..2), column j of
+ * the body rates and angles (0..5). */
+#define D1(a, j) ((a) * 6 + (j))
 
 void att_bias_predict(att_bias_t *bf, const att_bias_settings_t *s, const ekf_scalar_t d1[ATT_GEN_F1_NNZ],
                       ekf_scalar_t dt)
 {
-    /* The angles advance by dt W(m) w with the body rates w, which contain the residual
-     * offset one for one (the gyro update makes them follow the gyro): d angles+ / d b =
-     * (I + dt M(m)) V + dt W(m), the angle rows of F1 on the angle and body-rate columns
-     * (docs/derivation.md, "Gyroscope offset in motion"; M's yaw column is zero). The
-     * Euler-rate columns are left out: the Euler rates follow the body rates within a step,
-     * so their part is the same dependence once more at second order in dt. */
+    /* The angles advance with the body rates w, which contain the residual offset one for
+     * one (the gyro update makes them follow the gyro): d angles+ / d b = F_aa V + F_aw, the
+     * angle rows of F1 on the angle and body-rate columns (docs/derivation.md, "Gyroscope
+     * offset in motion"); F_aa = I + D1's angle block. */
     const ekf_scalar_t q = ekf_mul(ekf_sq(in_units(s->walk)), dt);
-    const ekf_scalar_t m00 = d1[D1_PHI_PHI], m01 = d1[D1_PHI_THETA], m10 = d1[D1_THETA_PHI];
-    const ekf_scalar_t m20 = d1[D1_PSI_PHI], m21 = d1[D1_PSI_THETA];
-    const ekf_scalar_t w0[3] = {d1[D1_PHI_P], d1[D1_PHI_Q], d1[D1_PHI_R]};
-    const ekf_scalar_t w1[3] = {EKF_C(0), d1[D1_THETA_Q], d1[D1_THETA_R]};
-    const ekf_scalar_t w2[3] = {EKF_C(0), d1[D1_PSI_Q], d1[D1_PSI_R]};
     ekf_scalar_t *const V = bf->V;
-    int j;
+    ekf_scalar_t old[9];
+    int a, j;
+    for (j = 0; j < 9; ++j) {
+        old[j] = V[j];
+    }
+    for (a = 0; a < 3; ++a) {
+        for (j = 0; j < 3; ++j) {
+            ekf_scalar_t v = ekf_add(old[3 * a + j], d1[D1(a, j)]);
+            v = ekf_mac(v, d1[D1(a, 3)], old[j]);
+            v = ekf_mac(v, d1[D1(a, 4)], old[3 + j]);
+            v = ekf_mac(v, d1[D1(a, 5)], old[6 + j]);
+            V[3 * a + j] = ekf_clamp(v, ekf_neg(BIAS_V_MAX), BIAS_V_MAX);
+        }
+    }
     for (j = 0; j < 3; ++j) {
-        const ekf_scalar_t v0 = V[j], v1 = V[3 + j], v2 = V[6 + j];
-        V[j] = ekf_clamp(ekf_add(ekf_mac(ekf_mac(v0, m00, v0), m01, v1), w0[j]), ekf_neg(BIAS_V_MAX), BIAS_V_MAX);
-        V[3 + j] = ekf_clamp(ekf_add(ekf_mac(v1, m10, v0), w1[j]), ekf_neg(BIAS_V_MAX), BIAS_V_MAX);
-        V[6 + j] = ekf_clamp(ekf_add(ekf_mac(ekf_mac(v2, m20, v0), m21, v1), w2[j]), ekf_neg(BIAS_V_MAX), BIAS_V_MAX);
         bf->Pb[j] = ekf_add(bf->Pb[j], q);
     }
 }

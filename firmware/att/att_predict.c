@@ -38,52 +38,41 @@ static void limit_variances(att_vars_t *v, const att_settings_t *s)
     (void)att_cov_limit_variance(&v->cov, ATT_THETA, ekf_sq(EKF_HALF_PI));
 }
 
-static void cross(const ekf_scalar_t a[3], const ekf_scalar_t b[3], ekf_scalar_t out[3])
+/* vec <- C^T vec: an earth-fixed vector seen from the body after it turned by C. */
+static void turn_vector(const ekf_scalar_t C[9], ekf_scalar_t vec[3])
 {
-    out[0] = ekf_sub(ekf_mul(a[1], b[2]), ekf_mul(a[2], b[1]));
-    out[1] = ekf_sub(ekf_mul(a[2], b[0]), ekf_mul(a[0], b[2]));
-    out[2] = ekf_sub(ekf_mul(a[0], b[1]), ekf_mul(a[1], b[0]));
-}
-
-/* vec <- vec - th x vec + (th x (th x vec)) / 2: an earth-fixed vector seen from a body
- * that turned by th (rad) in one step, second order in th = w dt; first order loses gravity
- * at fast rotation (|th| ~ 0.05 rad per sample) */
-static void turn_vector(const ekf_scalar_t th[3], ekf_scalar_t vec[3])
-{
-    ekf_scalar_t c1[3], c2[3];
+    const ekf_scalar_t v0 = vec[0], v1 = vec[1], v2 = vec[2];
     int i;
-    cross(th, vec, c1);
-    cross(th, c1, c2);
     for (i = 0; i < 3; ++i) {
-        vec[i] = ekf_mac(ekf_sub(vec[i], c1[i]), EKF_C(0.5), c2[i]);
+        vec[i] = ekf_mac(ekf_mac(ekf_mul(C[i], v0), C[3 + i], v1), C[6 + i], v2);
     }
 }
 
 /* The accelerometer low-pass (accel_lpf_tau, accel_lpf_order stages) lives in a frame that turns with the body:
  * every prediction carries the filtered specific force into the new body frame with the
- * body rates (dv/dt = -w x v for a vector fixed in the earth frame), every accelerometer
- * sample is blended in (att_update.c). Gravity is earth-fixed, so it passes without lag;
- * linear acceleration that averages to zero in the earth frame (shaking, vibration) is
- * filtered out (docs/derivation.md, "Linear acceleration"). */
-static void accel_lp_turn(att_vars_t *v, const att_settings_t *s, ekf_scalar_t dt)
+ * step's rotation C (a vector fixed in the earth frame is C^T v in the new body axes), every
+ * accelerometer sample is blended in (att_update.c). Gravity is earth-fixed, so it passes
+ * without lag; linear acceleration that averages to zero in the earth frame (shaking,
+ * vibration) is filtered out (docs/derivation.md, "Linear acceleration"). */
+static void accel_lp_turn(att_vars_t *v, const att_settings_t *s, const att_motion_t *mo, ekf_scalar_t dt)
 {
-    ekf_scalar_t th[3];
+    ekf_scalar_t th2 = EKF_C(0);
     int i;
     if (!v->accel_lp_valid) {
         return;
     }
     for (i = 0; i < 3; ++i) {
-        th[i] = ekf_mul(v->x[ATT_P + i], dt);
+        th2 = ekf_add(th2, ekf_sq(ekf_mul(v->x[ATT_P + i], dt)));
     }
-    if (ekf_add(ekf_add(ekf_sq(th[0]), ekf_sq(th[1])), ekf_sq(th[2])) > EKF_C(0.04)) {
-        /* more than 0.2 rad in one step (a gap, or beyond any IMU's rate): the series
-         * below would be wrong; start again from the next sample */
+    if (th2 > EKF_C(0.25)) {
+        /* more than half a radian in one step (a gap, or beyond any IMU's rate): the body's
+         * turn over the step is a guess; start again from the next sample */
         v->accel_lp_valid = 0u;
         return;
     }
-    turn_vector(th, v->accel_lp);
+    turn_vector(mo->rot, v->accel_lp);
     if (s->accel_lpf_order > 1u) {
-        turn_vector(th, v->accel_lp1);
+        turn_vector(mo->rot, v->accel_lp1);
     }
 }
 
@@ -92,15 +81,15 @@ ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scala
     ekf_scalar_t xn[ATT_N];
     ekf_scalar_t d1[ATT_GEN_F1_NNZ], d2[ATT_GEN_F2_NNZ];
     ekf_scalar_t inc_var[3];
-    att_trig_t tm, tn;
+    att_motion_t mo;
     int i;
 
-    att_model_transition(v->x, NULL, dt, s->gimbal_limit, xn, &tm, &tn);
+    att_model_transition(v->x, NULL, dt, s->gimbal_limit, xn, &mo);
     if (!att_state_finite(xn)) {
         return EKF_ERR_NUMERIC;
     }
     /* F = F2 F1 (docs/derivation.md, "State Jacobian") */
-    att_gen_transition_factors(&tm, &tn, v->x, dt, d1, d2);
+    att_gen_transition_factors(&mo.t0, &mo.t, v->x, mo.rot, mo.jd, d1, d2);
     /* F P F^T + Q, Q = G diag(rate_walk^2 dt) G^T (with the propagation; refused if the
      * Jacobian is not finite) + angle random walk + the discrete kinematics' own error:
      * independent, euler_rate_rel of the variance of each angle's increment and of each
@@ -119,17 +108,19 @@ ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scala
     att_bias_predict(&v->bias, &s->bias, d1, dt);
     att_consider_predict(&v->consider,
                          ekf_add(ekf_add(ekf_sq(v->x[ATT_P]), ekf_sq(v->x[ATT_Q])), ekf_sq(v->x[ATT_R])),
-                         s->angle_walk_rate, ekf_sq(tn.secth), dt);
+                         s->angle_walk_rate, ekf_sq(mo.t.secth), dt);
 
     for (i = 0; i < ATT_N; ++i) {
         v->x[i] = xn[i];
     }
     v->last_dt = dt;
     if (s->accel_lpf_tau > EKF_C(0)) {
-        accel_lp_turn(v, s, dt);
+        accel_lp_turn(v, s, &mo, dt);
     }
+    /* the composed rotation's angles are in range already; passing over the top shows as a
+     * half turn of roll and heading (the Jacobian was taken at the new angles) */
     v->flags &= ~ATT_FLAG_REMAPPED;
-    if (att_normalise(v)) {
+    if (mo.remapped) {
         v->flags |= ATT_FLAG_REMAPPED;
         ekf_count(&v->diag.remaps);
     }

@@ -139,6 +139,33 @@ ekf_status_t att_stage_gyro(att_vars_t *v, const att_settings_t *s, const ekf_sc
 
 /* ---- accelerometer ---- */
 
+/* A vector sample (accelerometer or magnetometer, body frame) is the mean over its interval
+ * of length dt: for a body turning at the rate state it is the vector at the interval's
+ * middle, half a step before the state's time. out = the same earth-fixed vector in the body
+ * axes at the end of the interval, turned by the rest of the step, -w dt/2 (second order in
+ * th = w dt / 2: v - th x v + th x (th x v) / 2); docs/derivation.md, "Sample timing". */
+static void cross3(const ekf_scalar_t a[3], const ekf_scalar_t b[3], ekf_scalar_t out[3])
+{
+    out[0] = ekf_sub(ekf_mul(a[1], b[2]), ekf_mul(a[2], b[1]));
+    out[1] = ekf_sub(ekf_mul(a[2], b[0]), ekf_mul(a[0], b[2]));
+    out[2] = ekf_sub(ekf_mul(a[0], b[1]), ekf_mul(a[1], b[0]));
+}
+
+static void to_interval_end(const att_vars_t *v, const ekf_scalar_t vec[3], ekf_scalar_t dt, ekf_scalar_t out[3])
+{
+    const ekf_scalar_t half = ekf_mul(EKF_C(0.5), dt);
+    ekf_scalar_t th[3], c1[3], c2[3];
+    int i;
+    for (i = 0; i < 3; ++i) {
+        th[i] = ekf_mul(v->x[ATT_P + i], half);
+    }
+    cross3(th, vec, c1);
+    cross3(th, c1, c2);
+    for (i = 0; i < 3; ++i) {
+        out[i] = ekf_mac(ekf_sub(vec[i], c1[i]), EKF_C(0.5), c2[i]);
+    }
+}
+
 /* Blends a sample into the low-passed specific force (see accel_lp_turn, att_predict.c):
  * the first stage follows the sample, the second (accel_lpf_order 2) the first stage; a
  * restarted low-pass takes the sample in every stage. */
@@ -191,15 +218,15 @@ ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_s
     /* a: what is fused, the low-passed force when the low-pass is on (every sample enters
      * it, fused or not), else the sample */
     if (s->accel_lpf_tau > EKF_C(0)) {
-        accel_lp_blend(v, s, accel, dt);
+        ekf_scalar_t ac[3];
+        to_interval_end(v, accel, dt, ac);
+        accel_lp_blend(v, s, ac, dt);
         for (i = 0; i < 3; ++i) {
             a[i] = v->accel_lp[i];
         }
         a_norm = att_norm3(a);
     } else {
-        for (i = 0; i < 3; ++i) {
-            a[i] = accel[i];
-        }
+        to_interval_end(v, accel, dt, a);
         a_norm = norm;
     }
     if (s->accel_adapt_tau > EKF_C(0)) {
@@ -267,7 +294,7 @@ ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_s
             pht[2] = ekf_mac(ekf_mul(att_cov_get(&v->cov, ATT_PSI, ATT_PHI), h3[0]),
                              att_cov_get(&v->cov, ATT_PSI, ATT_THETA), h3[1]);
         }
-        st = att_cov_update_tilt(&v->cov, v->x, hj[2 * i], hj[2 * i + 1], nu, r_var, gate, s->var_floor, &info);
+        st = att_cov_update_angles(&v->cov, v->x, h3, nu, r_var, gate, s->var_floor, &info);
         if (st == EKF_OK) {
             /* beyond the gimbal limit the kinematics are clamped: the innovations then carry
              * the clamp's error, not the offset's */
@@ -351,7 +378,11 @@ ekf_status_t att_stage_mag(att_vars_t *v, const att_settings_t *s, const ekf_sca
     }
     norm = att_norm3(mag);
     meas_trig(v, &t);
-    att_gen_mag_level(&t, mag, lev);
+    {
+        ekf_scalar_t m[3];
+        to_interval_end(v, mag, dt, m);
+        att_gen_mag_level(&t, m, lev);
+    }
     if (!(ekf_sqrt(ekf_add(ekf_sq(lev[0]), ekf_sq(lev[1]))) > ekf_mul(EKF_C(1e-3), norm))) {
         /* no horizontal component (or no field at all): no heading information */
         v->flags |= ATT_FLAG_MAG_DISTURBED;

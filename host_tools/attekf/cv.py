@@ -22,6 +22,10 @@ reported covariance is P + V Pb V^T + colored term + k^2 R1 + reference terms, e
 in k^2 = angle_walk_rate^2: two runs per trial (k = 0 and k = K0) give every combination.
 
 The settings that ship are the choice on all trials (the in-sample figure, printed beside).
+
+Rates. With several transforms (`--decimate 1,3`, `--resample 1000`; transform.py) every run is
+made at each of them and a trial's score is the mean of its scores over them (its coverage the
+lowest over them), so that the chosen settings serve every rate; the folds are unchanged.
 """
 
 from __future__ import annotations
@@ -37,6 +41,7 @@ import numpy as np
 from . import bench as B
 from . import bench_report as R
 from . import consistency as C
+from .transform import Transform
 
 FOLD_ORDER = ("rotation", "translation", "combined", "tapping", "vibration", "stationary_magnet",
               "attached_magnet", "office_environment", "mixed")
@@ -79,9 +84,9 @@ def folds(trials: Sequence[str], trial_groups: Dict[str, List[str]]) -> Dict[str
 # Workers (top level: they are pickled into the pool)
 # ---------------------------------------------------------------------------------------------
 def _accuracy_task(task):
-    path, settings, six_d, scalar = task
+    path, settings, six_d, scalar, tf = task
     from . import native
-    rec = B._recording(path)
+    rec = B._recording(path, tf)
     res = native.run_arrays(rec.t, rec.gyr, rec.acc, None if six_d else rec.mag, settings, scalar)
     q = res.quat.copy()
     q[~res.aligned] = np.nan
@@ -91,9 +96,9 @@ def _accuracy_task(task):
 
 def _consider_task(task):
     """Coverage and mean sigma of every CONSIDER_GRID combination on one trial and dimension."""
-    path, settings, six_d, scalar = task
+    path, settings, six_d, scalar, tf = task
     from . import native
-    rec = B._recording(path)
+    rec = B._recording(path, tf)
     runs = []
     for k in (0.0, K0):
         s = dict(settings, angle_walk_rate=k, accel_ref_sigma=0.0, mag_ref_sigma=0.0)
@@ -181,11 +186,33 @@ def choose_consider(tables: Dict[Tuple[str, bool], Dict[tuple, tuple]], trials: 
 # ---------------------------------------------------------------------------------------------
 # The whole protocol
 # ---------------------------------------------------------------------------------------------
+def _per_trial_mean(rows: List[Tuple[str, Dict[str, float]]]) -> Dict[str, Dict[str, float]]:
+    """(trial, scores) rows, a trial once per transform -> trial: scores averaged over them."""
+    by: Dict[str, List[Dict[str, float]]] = {}
+    for name, sc in rows:
+        by.setdefault(name, []).append(sc)
+    return {t: {k: float(np.mean([sc[k] for sc in v])) for k in v[0]} for t, v in by.items()}
+
+
+def _merge_tables(tables: List[Dict[tuple, tuple]]) -> Dict[tuple, tuple]:
+    """Coverage tables of one trial at several transforms -> the lowest coverage and the mean
+    sigma per angle, per combination."""
+    out = {}
+    for cb in tables[0]:
+        covs = [tb[cb][0] for tb in tables]
+        sigs = [tb[cb][1] for tb in tables]
+        out[cb] = ([min(c[i] for c in covs) for i in range(len(covs[0]))],
+                   [float(np.mean([s[i] for s in sigs])) for i in range(len(sigs[0]))])
+    return out
+
+
 def run_cv(paths: List[str], data_dir: str, grid: List[Tuple[str, List[float]]], base: Dict[str, float],
-           scalar: str = "float", jobs: int = 1, progress=None, log=None) -> Dict[str, object]:
-    """Runs the protocol of the module docstring; returns the result dictionary (JSON-able
-    after clean_json)."""
+           scalar: str = "float", jobs: int = 1, progress=None, log=None,
+           transforms: Sequence[Transform] = (Transform(),)) -> Dict[str, object]:
+    """Runs the protocol of the module docstring at each of `transforms` (a trial's score: the
+    mean over them); returns the result dictionary (JSON-able after clean_json)."""
     log = log or (lambda msg: None)
+    tfs = list(transforms)
     group_names, trial_groups = B.load_groups(data_dir)
     trials = [os.path.splitext(os.path.basename(p))[0] for p in paths]
     by_name = dict(zip(trials, paths))
@@ -203,12 +230,14 @@ def run_cv(paths: List[str], data_dir: str, grid: List[Tuple[str, List[float]]],
     keys9 = {idx: idx for idx in points}
     keys6 = {idx: tuple(i if names[a] not in MAG_ONLY else 0 for a, i in enumerate(idx)) for idx in points}
     jobs_list = [(k, False) for k in sorted(set(keys9.values()))] + [(k, True) for k in sorted(set(keys6.values()))]
-    tasks = [(by_name[t], settings_of(k, six), six, scalar) for k, six in jobs_list for t in trials]
+    tasks = [(by_name[t], settings_of(k, six), six, scalar, tf) for k, six in jobs_list for t in trials
+             for tf in tfs]
     log(f"accuracy grid: {len(points)} points, {len(tasks)} runs")
     res = _pool_map(_accuracy_task, tasks, jobs, progress)
     runs: Dict[Tuple[tuple, bool], Dict[str, Dict[str, float]]] = {}
-    for (k, six), chunk in zip(jobs_list, [res[i:i + len(trials)] for i in range(0, len(res), len(trials))]):
-        runs[(k, six)] = dict(chunk)
+    size = len(trials) * len(tfs)
+    for (k, six), chunk in zip(jobs_list, [res[i:i + size] for i in range(0, len(res), size)]):
+        runs[(k, six)] = _per_trial_mean(chunk)
     s9 = {idx: runs[(keys9[idx], False)] for idx in points}
     s6 = {idx: runs[(keys6[idx], True)] for idx in points}
 
@@ -232,8 +261,8 @@ def run_cv(paths: List[str], data_dir: str, grid: List[Tuple[str, List[float]]],
 
     # 3. the reported-covariance settings, at every accuracy point any fold chose
     consider_points = sorted(set(chosen.values()) | {full})
-    ctasks = [(by_name[t], settings_of(idx, six), six, scalar) for idx in consider_points for six in (False, True)
-              for t in trials]
+    ctasks = [(by_name[t], settings_of(idx, six), six, scalar, tf) for idx in consider_points for six in (False, True)
+              for t in trials for tf in tfs]
     log(f"reported covariance: {len(consider_points)} accuracy point(s), {len(ctasks)} runs")
     cres = _pool_map(_consider_task, ctasks, jobs, progress)
     ctab: Dict[tuple, Dict[Tuple[str, bool], dict]] = {}
@@ -241,9 +270,9 @@ def run_cv(paths: List[str], data_dir: str, grid: List[Tuple[str, List[float]]],
     for idx in consider_points:
         for six in (False, True):
             for t in trials:
-                name, table = cres[i]
-                ctab.setdefault(idx, {})[(name, six)] = table
-                i += 1
+                chunk = cres[i:i + len(tfs)]
+                ctab.setdefault(idx, {})[(chunk[0][0], six)] = _merge_tables([tb for _, tb in chunk])
+                i += len(tfs)
     cons_chosen: Dict[str, tuple] = {}
     cv_cov: Dict[Tuple[str, bool], tuple] = {}
     for fold, members in fold_of.items():
@@ -276,6 +305,7 @@ def run_cv(paths: List[str], data_dir: str, grid: List[Tuple[str, List[float]]],
     return {
         "trials": trials, "group_names": group_names, "trial_groups": {t: trial_groups.get(t, []) for t in trials},
         "folds": fold_of, "grid": {n: v for n, v in grid}, "base_settings": base, "scalar": scalar,
+        "rates": [tf.label() for tf in tfs],
         "consider_grid": CONSIDER_GRID,
         "chosen": {f: {"accuracy": point_settings(idx), "reported_covariance": cons_settings(cons_chosen[f])}
                    for f, idx in chosen.items()},
@@ -307,7 +337,11 @@ def format_report(r: Dict[str, object], vqf: Optional[Dict[str, Dict[str, Dict[s
     given), coverage per trial, sensitivity."""
     trials = r["trials"]
     lines = ["Leave-one-group-out cross-validation (folds: " + ", ".join(f"{f} ({len(m)})" for f, m in r["folds"].items())
-             + ")", "", "chosen on the other folds:"]
+             + ")"]
+    if r.get("rates", ["native"]) != ["native"]:
+        lines.append("at the rates: " + ", ".join(r["rates"]) + " (each trial's score: the mean over them; its "
+                     "coverage: the lowest)")
+    lines += ["", "chosen on the other folds:"]
     for f, ch in r["chosen"].items():
         lines.append(f"  without {f:18s} " + ", ".join(f"{k}={v:g}" for k, v in ch["accuracy"].items()) + "; "
                      + ", ".join(f"{k}={v:g}" for k, v in ch["reported_covariance"].items()))
@@ -364,14 +398,16 @@ def format_report(r: Dict[str, object], vqf: Optional[Dict[str, Dict[str, Dict[s
     return "\n".join(lines)
 
 
-def vqf_scores(paths: List[str], jobs: int = 1, progress=None) -> Dict[str, Dict[str, Dict[str, float]]]:
-    """VQF offline 9D / 6D per trial (the same runs as `attekf bench`)."""
-    cfg = B.RunConfig()
-    tasks = [(p, key, cfg) for key in ("vqf-9d", "vqf-6d") for p in paths]
+def vqf_scores(paths: List[str], jobs: int = 1, progress=None,
+               transforms: Sequence[Transform] = (Transform(),)) -> Dict[str, Dict[str, Dict[str, float]]]:
+    """VQF offline 9D / 6D per trial (the same runs as `attekf bench`), the mean over the
+    transforms."""
+    tasks = [(p, key, B.RunConfig(transform=tf)) for key in ("vqf-9d", "vqf-6d") for p in paths for tf in transforms]
     rows = _pool_map(B.run_task, tasks, jobs, progress)
-    out: Dict[str, Dict[str, Dict[str, float]]] = {"9d": {}, "6d": {}}
-    for row in rows:
-        out["6d" if row["method"].endswith("6d") else "9d"][row["trial"]] = {k: row[k] for k in B.M_KEYS}
+    out: Dict[str, Dict[str, Dict[str, float]]] = {}
+    for dim in ("9d", "6d"):
+        out[dim] = _per_trial_mean([(r["trial"], {k: r[k] for k in B.M_KEYS}) for r in rows
+                                    if r["method"].endswith(dim)])
     return out
 
 

@@ -375,11 +375,12 @@ static void test_numeric_failures_discard_the_whole_call(void)
     REFUSED(&f, att_step(&f, &smp, &rep), NU, CNT_NUMERIC);
     expect_report(&rep, NU, SK, SK, SK);
 
-    /* (b) an infinite Euler-rate variance: the updates' new variances are not finite, the
-     * prediction's P is not finite for the guard */
+    /* (b) an infinite roll variance: the updates' new variances are not finite, the
+     * prediction's P is not finite for the guard (an Euler rate's would not do: the
+     * prediction replaces those rows without reading them) */
     aligned(&f, &sim);
     sample_at_rest(&sim, &good);
-    att_cov_reset_state(&f.vars.cov, ATT_PHID, inf_s(1.0));
+    att_cov_reset_state(&f.vars.cov, ATT_PHI, inf_s(1.0));
     REFUSED(&f, att_update_mag(&f, good.mag, EKF_C(0.01)), NU, CNT_NUMERIC);
     REFUSED(&f, att_update_gyro(&f, good.gyro, EKF_C(0.01)), NU, CNT_NUMERIC);
     REFUSED(&f, att_predict(&f, good.dt), NU, CNT_NUMERIC);

@@ -116,6 +116,7 @@ nonneg_float = _checked(float, lambda v: math.isfinite(v) and v >= 0, "number >=
 positive_float = _checked(float, lambda v: math.isfinite(v) and v > 0, "number > 0")
 nonneg_int = _checked(int, lambda v: v >= 0, "integer >= 0")
 positive_int = _checked(int, lambda v: v >= 1, "integer >= 1")
+fraction = _checked(float, lambda v: 0.0 <= v < 1.0, "fraction in [0, 1)")
 
 
 def parse_pair(item: str, what: str) -> Tuple[str, float]:

@@ -1,13 +1,15 @@
 /*
- * att_cov_ref.c - reference implementation of att_cov.h: P full row-major 9x9, on the
- * generic routines of ekf.h (ekf_update_scalar, ekf_cov_limit_variance, ekf_cov_is_pd,
+ * att_cov_ref.c - reference implementation of att_cov.h for the tests: P full row-major 9x9,
+ * on the generic routines of ekf.h (ekf_update_scalar, ekf_cov_limit_variance, ekf_cov_is_pd,
  * ekf_cov_ensure_pd) and the generated att_gen_cov_propagate_f1/_f2 (ekf_cov_propagate
- * unrolled, bit for bit). The same filter without any storage optimisation; selected with
- * -DATT_COV_REFERENCE=1 (ekf_config.h).
+ * unrolled, bit for bit). The same filter without any storage optimisation, compiled with
+ * ATT_COV_REFERENCE in place of the build's own covariance (tests/c/CMakeLists.txt).
  */
 #include "att_cov.h"
 
-#if defined(ATT_COV_REFERENCE)
+#if !defined(ATT_COV_REFERENCE)
+#error "att_cov_ref.c is the tests' reference covariance: compile it with ATT_COV_REFERENCE"
+#endif
 
 #include <stddef.h>
 
@@ -197,14 +199,14 @@ ekf_status_t att_cov_update_unit(att_cov_t *c, ekf_scalar_t x[ATT_N], int idx, e
     return ekf_update_scalar(x, c->P, ATT_N, &h, nu, r_var, gate, var_floor, info);
 }
 
-ekf_status_t att_cov_update_tilt(att_cov_t *c, ekf_scalar_t x[ATT_N], ekf_scalar_t h_phi,
-                                 ekf_scalar_t h_theta, ekf_scalar_t nu, ekf_scalar_t r_var,
-                                 ekf_scalar_t gate, ekf_scalar_t var_floor, ekf_innov_t *info)
+ekf_status_t att_cov_update_angles(att_cov_t *c, ekf_scalar_t x[ATT_N], const ekf_scalar_t h[3], ekf_scalar_t nu,
+                                   ekf_scalar_t r_var, ekf_scalar_t gate, ekf_scalar_t var_floor, ekf_innov_t *info)
 {
-    static const uint8_t cols[2] = {ATT_PHI, ATT_THETA};
-    const ekf_scalar_t hv[2] = {h_phi, h_theta};
-    const ekf_hrow_t h = {cols, hv, 2u};
-    return ekf_update_scalar(x, c->P, ATT_N, &h, nu, r_var, gate, var_floor, info);
+    /* the heading's entry only where it is not zero (the accelerometer's rows): the same
+     * sums as the packed implementation's, bit for bit */
+    static const uint8_t cols[3] = {ATT_PHI, ATT_THETA, ATT_PSI};
+    const ekf_hrow_t row = {cols, h, (h[2] != EKF_C(0)) ? 3u : 2u};
+    return ekf_update_scalar(x, c->P, ATT_N, &row, nu, r_var, gate, var_floor, info);
 }
 
 int att_cov_is_pd(const att_cov_t *c, ekf_scalar_t rel_margin)
@@ -227,7 +229,4 @@ int att_cov_guard(att_cov_t *c, ekf_scalar_t rel_margin, ekf_scalar_t var_floor)
     return att_cov_ensure_pd(c, rel_margin, var_floor);
 }
 
-#else
-/* (ISO C wants a declaration in every translation unit) */
-typedef int att_cov_ref_not_selected;
-#endif /* ATT_COV_REFERENCE */
+
