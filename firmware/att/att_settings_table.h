@@ -139,7 +139,10 @@ extern "C" {
     X(bias_tau, S, 10, 10, 0, 1e6, ANY, 1, "s", \
       "averaging time of the offset; 0 = no offset estimation") \
     X(bias_max, S, 0.035, 0.035, 0, 1e6, ANY, 1, "rad/s", \
-      "largest offset per axis (<= gyro_range)")
+      "largest offset per axis (<= gyro_range)") \
+    X(accel_noise, S, 0.005, 0.005, 0, 1e6, ZPOS2, 1, "m/s^2*sqrt(s)", \
+      "accelerometer noise density at rest, where no linear acceleration is left to allow for: " \
+      "the sample itself is fused with it; 0 = as in motion")
 
 /* The gyroscope offset learned in motion (att_bias.h): names "bias.*". */
 #define ATT_SETTINGS_BIAS(X) \

@@ -209,6 +209,7 @@ ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_s
     ekf_status_t st;
     ekf_innov_t info;
     int i, gated = 0, bypass_failed = 0, consistent = 1;
+    const int rest = (v->flags & ATT_FLAG_AT_REST) != 0u && s->rest.accel_noise > EKF_C(0);
 
     v->tilt_ok = 0u; /* until this update shows otherwise */
     norm = att_norm3(accel);
@@ -222,7 +223,7 @@ ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_s
         to_interval_end(v, accel, dt, ac);
         accel_lp_blend(v, s, ac, dt);
         for (i = 0; i < 3; ++i) {
-            a[i] = v->accel_lp[i];
+            a[i] = (rest) ? ac[i] : v->accel_lp[i];
         }
         a_norm = att_norm3(a);
     } else {
@@ -250,6 +251,9 @@ ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_s
         r_var = ekf_div(ekf_div(ekf_add(ekf_sq(s->accel_noise), lin), dt), ekf_sq(s->gravity));
         if (lin > ekf_sq(s->accel_noise)) {
             v->flags |= ATT_FLAG_ACCEL_DEWEIGHTED; /* the noise variance at least doubled */
+        }
+        if (rest) {
+            r_var = ekf_div(ekf_div(ekf_sq(s->rest.accel_noise), dt), ekf_sq(s->gravity));
         }
     }
     if (s->accel_band > EKF_C(0)) {
