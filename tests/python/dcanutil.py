@@ -159,3 +159,50 @@ def read_candump(path) -> List[Frame]:
         ident, data = parts[2].split("#", 1)
         out.append((float(parts[0][1:-1]), int(ident, 16), bytes.fromhex(data), len(ident) > 3))
     return out
+
+
+def other_nodes_traffic(duration_s: float, ids: Sequence[int] = (10, 11, 12, 13, 14),
+                        exclude: int = 100) -> List[Frame]:
+    """What 5 other DroneCAN nodes put on a bus in duration_s, encoded by the dronecan package:
+    every node's NodeStatus at 1 Hz; an ESC's status at 100 Hz (3 frames); a GNSS receiver's Fix2
+    at 10 Hz (8 frames); another IMU's RawIMU at 200 Hz (7 frames) and a magnetometer at 50 Hz; a
+    barometer at 20 Hz; one node asking another for its node info and a parameter at 2 Hz, and
+    the answers (the same service types the estimator serves, addressed to someone else)."""
+    d = dronecan()
+    T = d.TYPENAMES
+    a, b, c, e, f = ids
+    assert exclude not in ids
+    frames: List[Frame] = []
+    tid = {}
+
+    def put(msg, t, src, dest=None, request=True):
+        key = (type(msg).__name__, msg._type.full_name, src, dest, request)
+        k = tid.get(key, 0)
+        tid[key] = k + 1
+        frames.extend(transfer_frames(msg, t, src, k, dest=dest, priority=20, request=request))
+
+    n = int(duration_s * 200)
+    for i in range(n):
+        t = i / 200.0
+        if i % 200 == 0:
+            for src in ids:
+                put(T["uavcan.protocol.NodeStatus"](uptime_sec=i // 200, health=0, mode=0), t + 0.001 * src, src)
+        if i % 2 == 0:
+            put(T["uavcan.equipment.esc.Status"](error_count=0, voltage=16.0, current=3.5, temperature=300.0,
+                                                 rpm=4000 + i, power_rating_pct=40, esc_index=0), t, a)
+        if i % 20 == 0:
+            put(T["uavcan.equipment.gnss.Fix2"](latitude_deg_1e8=4700000000 + i, longitude_deg_1e8=800000000,
+                                                height_msl_mm=400000, sats_used=12, status=3), t, b)
+        put(T["uavcan.equipment.ahrs.RawIMU"](rate_gyro_latest=[0.01, 0.0, -0.02],
+                                              accelerometer_latest=[0.1, 0.0, -9.8]), t, c)
+        if i % 4 == 0:
+            put(T["uavcan.equipment.ahrs.MagneticFieldStrength2"](magnetic_field_ga=[0.2, 0.0, 0.4]), t, e)
+        if i % 10 == 0:
+            put(T["uavcan.equipment.air_data.StaticPressure"](static_pressure=95000.0 + i,
+                                                              static_pressure_variance=1.0), t, f)
+        if i % 100 == 0:
+            put(d.uavcan.protocol.GetNodeInfo.Request(), t, e, dest=f)
+            put(d.uavcan.protocol.GetNodeInfo.Response(name="org.example.baro"), t + 0.002, f, dest=e, request=False)
+            put(d.uavcan.protocol.param.GetSet.Request(name="BARO_RATE"), t + 0.004, e, dest=f)
+            put(d.uavcan.protocol.param.GetSet.Response(name="BARO_RATE"), t + 0.006, f, dest=e, request=False)
+    return frames
