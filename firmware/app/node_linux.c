@@ -288,6 +288,11 @@ static int configure(const options_t *o, app_config_t *cfg)
     } else {
         (void)node_machine_unique_id(cfg->node.node_id, cfg->node.unique_id);
     }
+    if (cfg->node.protocol == APP_PROTO_TEXT) {
+        fprintf(stderr, "attekf-node: node.protocol 2 (text lines) needs a text channel; on CAN use 0 (dbc) or 1 "
+                        "(dronecan)\n");
+        return o->params != NULL ? 1 : 2;
+    }
     if (app_config_check(cfg) != EKF_OK) {
         fprintf(stderr, "attekf-node: the configuration is not consistent (the timing options against the "
                         "filter's dt_max, or the DBC base ids overlap); see --help\n");

@@ -248,7 +248,7 @@ def encode_samples(t_s: np.ndarray, gyr: np.ndarray, acc: Optional[np.ndarray] =
 # Decoding
 # ---------------------------------------------------------------------------------------------
 def status_flags(decoded: Dict[str, object]) -> int:
-    """HAL_FLAG_* word from a decoded ATT_STATUS."""
+    """APP_FLAG_* word (firmware/app/app_msg.h) from a decoded ATT_STATUS."""
     return sum(bit for name, bit in STATUS_BITS.items() if int(decoded[name]))
 
 
@@ -261,7 +261,7 @@ class OutputRow:
     euler: Tuple[float, float, float]
     rates: Tuple[float, float, float]
     sigma: Tuple[float, float, float]
-    flags: int                     # HAL_FLAG_*
+    flags: int                     # APP_FLAG_*
     att_flags: int                 # ATT_FLAG_*
 
 

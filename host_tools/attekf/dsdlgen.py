@@ -564,6 +564,7 @@ def dump_text(secs: List[Section]) -> str:
             out.append("            return -1;")
             out.append("        }")
             out.append(f"        dump_{sec.stem}(f, &m);")
+            out.append("        memset(again, 0xFF, sizeof(again)); /* no byte left as it was */")
             out.append(f"        n = {sec.stem}_encode(&m, again, sizeof(again));")
             out.append("        /* decode -> encode gives the same bytes */")
             out.append("        return (n == (int)len && memcmp(again, buf, len) == 0) ? 0 : -2;")

@@ -17,9 +17,16 @@ void dsdl_writer_init(dsdl_writer_t *w, uint8_t *buf, size_t size)
     w->error = 0u;
 }
 
-int dsdl_writer_end(const dsdl_writer_t *w)
+int dsdl_writer_end(dsdl_writer_t *w)
 {
-    return w->error ? -1 : (int)((w->bit + 7u) / 8u);
+    if (w->error) {
+        return -1;
+    }
+    if (w->bit % 8u != 0u) {
+        /* the padding of the last byte is zero (the bits beyond were never written) */
+        w->buf[w->bit / 8u] = (uint8_t)(w->buf[w->bit / 8u] & (0xFFu << (8u - w->bit % 8u)));
+    }
+    return (int)((w->bit + 7u) / 8u);
 }
 
 void dsdl_reader_init(dsdl_reader_t *r, const uint8_t *buf, size_t len)

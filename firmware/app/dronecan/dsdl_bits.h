@@ -37,8 +37,9 @@ typedef struct {
 } dsdl_reader_t;
 
 void dsdl_writer_init(dsdl_writer_t *w, uint8_t *buf, size_t size);
-/* Bytes written (the last one padded with zero bits), or -1 after an error. */
-int dsdl_writer_end(const dsdl_writer_t *w);
+/* Bytes written (the last one padded with zero bits: its bits beyond the stream are cleared),
+ * or -1 after an error. */
+int dsdl_writer_end(dsdl_writer_t *w);
 void dsdl_reader_init(dsdl_reader_t *r, const uint8_t *buf, size_t len);
 /* 0, or -1 after an error or if more than the zero padding of the last byte is left over. */
 int dsdl_reader_end(const dsdl_reader_t *r);

@@ -370,6 +370,7 @@ int dsdl_dump(FILE *f, const char *type, const uint8_t *buf, size_t len)
             return -1;
         }
         dump_dsdl_protocol_node_status(f, &m);
+        memset(again, 0xFF, sizeof(again)); /* no byte left as it was */
         n = dsdl_protocol_node_status_encode(&m, again, sizeof(again));
         /* decode -> encode gives the same bytes */
         return (n == (int)len && memcmp(again, buf, len) == 0) ? 0 : -2;
@@ -387,6 +388,7 @@ int dsdl_dump(FILE *f, const char *type, const uint8_t *buf, size_t len)
             return -1;
         }
         dump_dsdl_protocol_get_node_info_resp(f, &m);
+        memset(again, 0xFF, sizeof(again)); /* no byte left as it was */
         n = dsdl_protocol_get_node_info_resp_encode(&m, again, sizeof(again));
         /* decode -> encode gives the same bytes */
         return (n == (int)len && memcmp(again, buf, len) == 0) ? 0 : -2;
@@ -400,6 +402,7 @@ int dsdl_dump(FILE *f, const char *type, const uint8_t *buf, size_t len)
             return -1;
         }
         dump_dsdl_protocol_restart_node_req(f, &m);
+        memset(again, 0xFF, sizeof(again)); /* no byte left as it was */
         n = dsdl_protocol_restart_node_req_encode(&m, again, sizeof(again));
         /* decode -> encode gives the same bytes */
         return (n == (int)len && memcmp(again, buf, len) == 0) ? 0 : -2;
@@ -413,6 +416,7 @@ int dsdl_dump(FILE *f, const char *type, const uint8_t *buf, size_t len)
             return -1;
         }
         dump_dsdl_protocol_restart_node_resp(f, &m);
+        memset(again, 0xFF, sizeof(again)); /* no byte left as it was */
         n = dsdl_protocol_restart_node_resp_encode(&m, again, sizeof(again));
         /* decode -> encode gives the same bytes */
         return (n == (int)len && memcmp(again, buf, len) == 0) ? 0 : -2;
@@ -426,6 +430,7 @@ int dsdl_dump(FILE *f, const char *type, const uint8_t *buf, size_t len)
             return -1;
         }
         dump_dsdl_param_get_set_req(f, &m);
+        memset(again, 0xFF, sizeof(again)); /* no byte left as it was */
         n = dsdl_param_get_set_req_encode(&m, again, sizeof(again));
         /* decode -> encode gives the same bytes */
         return (n == (int)len && memcmp(again, buf, len) == 0) ? 0 : -2;
@@ -439,6 +444,7 @@ int dsdl_dump(FILE *f, const char *type, const uint8_t *buf, size_t len)
             return -1;
         }
         dump_dsdl_param_get_set_resp(f, &m);
+        memset(again, 0xFF, sizeof(again)); /* no byte left as it was */
         n = dsdl_param_get_set_resp_encode(&m, again, sizeof(again));
         /* decode -> encode gives the same bytes */
         return (n == (int)len && memcmp(again, buf, len) == 0) ? 0 : -2;
@@ -452,6 +458,7 @@ int dsdl_dump(FILE *f, const char *type, const uint8_t *buf, size_t len)
             return -1;
         }
         dump_dsdl_param_execute_opcode_req(f, &m);
+        memset(again, 0xFF, sizeof(again)); /* no byte left as it was */
         n = dsdl_param_execute_opcode_req_encode(&m, again, sizeof(again));
         /* decode -> encode gives the same bytes */
         return (n == (int)len && memcmp(again, buf, len) == 0) ? 0 : -2;
@@ -465,6 +472,7 @@ int dsdl_dump(FILE *f, const char *type, const uint8_t *buf, size_t len)
             return -1;
         }
         dump_dsdl_param_execute_opcode_resp(f, &m);
+        memset(again, 0xFF, sizeof(again)); /* no byte left as it was */
         n = dsdl_param_execute_opcode_resp_encode(&m, again, sizeof(again));
         /* decode -> encode gives the same bytes */
         return (n == (int)len && memcmp(again, buf, len) == 0) ? 0 : -2;
@@ -478,6 +486,7 @@ int dsdl_dump(FILE *f, const char *type, const uint8_t *buf, size_t len)
             return -1;
         }
         dump_dsdl_ahrs_solution(f, &m);
+        memset(again, 0xFF, sizeof(again)); /* no byte left as it was */
         n = dsdl_ahrs_solution_encode(&m, again, sizeof(again));
         /* decode -> encode gives the same bytes */
         return (n == (int)len && memcmp(again, buf, len) == 0) ? 0 : -2;
@@ -491,6 +500,7 @@ int dsdl_dump(FILE *f, const char *type, const uint8_t *buf, size_t len)
             return -1;
         }
         dump_dsdl_ahrs_raw_imu(f, &m);
+        memset(again, 0xFF, sizeof(again)); /* no byte left as it was */
         n = dsdl_ahrs_raw_imu_encode(&m, again, sizeof(again));
         /* decode -> encode gives the same bytes */
         return (n == (int)len && memcmp(again, buf, len) == 0) ? 0 : -2;
@@ -504,6 +514,7 @@ int dsdl_dump(FILE *f, const char *type, const uint8_t *buf, size_t len)
             return -1;
         }
         dump_dsdl_ahrs_magnetic_field_strength2(f, &m);
+        memset(again, 0xFF, sizeof(again)); /* no byte left as it was */
         n = dsdl_ahrs_magnetic_field_strength2_encode(&m, again, sizeof(again));
         /* decode -> encode gives the same bytes */
         return (n == (int)len && memcmp(again, buf, len) == 0) ? 0 : -2;
