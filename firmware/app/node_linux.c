@@ -12,7 +12,7 @@
  *
  * Stops on SIGINT/SIGTERM, end of replay, or --duration. Counters, the node-side latency
  * (kernel receive time of a sample's last frame -> its output handed to the kernel) and the CPU
- * time are printed at exit and written as JSON with --stats.
+ * time are printed at exit and written as JSON with --stats (node_stats.c).
  */
 #define _GNU_SOURCE 1 /* sigaction, getrusage with -std=c99 */
 
@@ -22,7 +22,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/resource.h>
 #include <time.h>
 
 #include "app.h"
@@ -32,14 +31,11 @@
 #include "hal_socketcan.h"
 #include "hal_virtual.h"
 #include "node_params.h"
+#include "node_stats.h"
 
 #define NODE_VERSION "0.2.0"
 #define REPLAY_QUEUE 4096u
 #define MAX_SETS 64
-/* Latency histogram: 1 us bins below 10 ms, 100 us bins from 10 ms to 1 s, one bin beyond. */
-#define LAT_FINE_US 10000u
-#define LAT_COARSE_US 100u
-#define LAT_BINS (LAT_FINE_US + (1000000u - LAT_FINE_US) / LAT_COARSE_US)
 
 static volatile sig_atomic_t g_stop = 0;
 
@@ -331,23 +327,9 @@ static void log_event(void *user, hal_level_t level, const char *event, int32_t 
 typedef struct {
     const hal_t *inner;
     const char *params;      /* parameter file (NULL: none) */
-    uint32_t lat_hist[LAT_BINS + 1u];
-    uint64_t lat_n, lat_max_us;
+    node_latency_t lat;
     int live;                /* latency only means something on a real clock */
 } node_t;
-
-static uint32_t lat_bin(uint64_t lat_us)
-{
-    if (lat_us < LAT_FINE_US) {
-        return (uint32_t)lat_us;
-    }
-    return (lat_us < 1000000u) ? LAT_FINE_US + (uint32_t)((lat_us - LAT_FINE_US) / LAT_COARSE_US) : LAT_BINS;
-}
-
-static uint64_t lat_bin_us(uint32_t bin)
-{
-    return (bin < LAT_FINE_US) ? bin : LAT_FINE_US + (uint64_t)(bin - LAT_FINE_US) * LAT_COARSE_US;
-}
 
 /* After every output sent: its latency (live mode). */
 static void on_output(void *user, const app_output_t *out)
@@ -355,12 +337,7 @@ static void on_output(void *user, const app_output_t *out)
     node_t *n = (node_t *)user;
     if (n->live && out->kind == APP_OUT_ATTITUDE) {
         const uint64_t now = hal_now_us(n->inner);
-        const uint64_t lat = (now > out->rx_us) ? now - out->rx_us : 0u;
-        ++n->lat_hist[lat_bin(lat)];
-        ++n->lat_n;
-        if (lat > n->lat_max_us) {
-            n->lat_max_us = lat;
-        }
+        node_latency_add(&n->lat, (now > out->rx_us) ? now - out->rx_us : 0u);
     }
 }
 
@@ -374,26 +351,6 @@ static int on_erase(void *user)
 {
     const node_t *n = (const node_t *)user;
     return n->params != NULL && node_params_erase(n->params);
-}
-
-/* Latency percentile (0..100) in us from the histogram (resolution 1 us below 10 ms, 100 us
- * above; beyond 1 s the maximum). */
-static uint64_t lat_percentile(const node_t *n, double pct)
-{
-    uint64_t want, acc = 0u;
-    uint32_t i;
-    if (n->lat_n == 0u) {
-        return 0u;
-    }
-    want = (uint64_t)(pct / 100.0 * (double)n->lat_n + 0.999999);
-    want = (want == 0u) ? 1u : want;
-    for (i = 0; i <= LAT_BINS; ++i) {
-        acc += n->lat_hist[i];
-        if (acc >= want) {
-            return (i < LAT_BINS) ? lat_bin_us(i) : n->lat_max_us;
-        }
-    }
-    return n->lat_max_us;
 }
 
 /* ---- candump log files ------------------------------------------------------------------ */
@@ -447,64 +404,6 @@ static void write_frame(void *user, const hal_frame_t *f)
     if (candump_format_line(f, s->channel, line, sizeof(line)) < 0 || fputs(line, s->out) == EOF) {
         s->write_error = 1;
     }
-}
-
-/* ---- statistics -------------------------------------------------------------------------- */
-static double cpu_seconds(void)
-{
-    struct rusage ru;
-    if (getrusage(RUSAGE_SELF, &ru) != 0) {
-        return 0.0;
-    }
-    return (double)ru.ru_utime.tv_sec + (double)ru.ru_stime.tv_sec +
-           1e-6 * (double)(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
-}
-
-static void print_stats(FILE *f, const app_t *app, const node_t *n, const char *mode, int json, int rcvbuf,
-                        double wall_s)
-{
-    uint32_t c[APP_CNT_COUNT];
-    int i;
-    app_get_counters(app, c);
-    if (json) {
-        fprintf(f, "{\n  \"mode\": \"%s\",\n  \"protocol\": \"%s\",\n  \"rcvbuf_bytes\": %d,\n  \"cpu_s\": %.6f,\n"
-                   "  \"wall_s\": %.6f,\n  \"counters\": {\n",
-                mode, app->node.protocol == APP_PROTO_DRONECAN ? "dronecan" : "dbc", rcvbuf, cpu_seconds(), wall_s);
-        for (i = 0; i < APP_CNT_COUNT; ++i) {
-            fprintf(f, "    \"%s\": %" PRIu32 "%s\n", app_counter_name((app_counter_id_t)i), c[i],
-                    i + 1 < APP_CNT_COUNT ? "," : "");
-        }
-        fprintf(f,
-                "  },\n  \"latency_us\": {\"count\": %" PRIu64 ", \"p50\": %" PRIu64 ", \"p90\": %" PRIu64
-                ", \"p99\": %" PRIu64 ", \"max\": %" PRIu64 "}\n}\n",
-                n->lat_n, lat_percentile(n, 50.0), lat_percentile(n, 90.0), lat_percentile(n, 99.0), n->lat_max_us);
-        return;
-    }
-    fprintf(f, "attekf-node: counters:");
-    for (i = 0; i < APP_CNT_COUNT; ++i) {
-        fprintf(f, " %s=%" PRIu32, app_counter_name((app_counter_id_t)i), c[i]);
-    }
-    fprintf(f, "\n");
-    if (n->lat_n > 0u) {
-        fprintf(f, "attekf-node: output latency us: n=%" PRIu64 " p50=%" PRIu64 " p99=%" PRIu64 " max=%" PRIu64 "\n",
-                n->lat_n, lat_percentile(n, 50.0), lat_percentile(n, 99.0), n->lat_max_us);
-    }
-}
-
-static int write_stats(const char *path, const app_t *app, const node_t *n, const char *mode, int rcvbuf,
-                       double wall_s)
-{
-    FILE *f = fopen(path, "w");
-    if (f == NULL) {
-        fprintf(stderr, "attekf-node: cannot write %s: %s\n", path, strerror(errno));
-        return 0;
-    }
-    print_stats(f, app, n, mode, 1, rcvbuf, wall_s);
-    if (fclose(f) != 0) {
-        fprintf(stderr, "attekf-node: cannot write %s: %s\n", path, strerror(errno));
-        return 0;
-    }
-    return 1;
 }
 
 /* ---- main ------------------------------------------------------------------------------- */
@@ -675,11 +574,11 @@ int main(int argc, char **argv)
     rc = (o.replay != NULL) ? run_replay(&o, &cfg, &hal) : run_live(&o, &cfg, &hal);
     if (g_app.hal != NULL) {
         const char *mode = o.replay ? "replay" : "socketcan";
+        const node_run_t run = {mode, o.replay ? 0 : g_can.rcvbuf_actual, wall_now() - t0};
         if (o.log_level >= HAL_LOG_INFO) {
-            print_stats(stderr, &g_app, &g_node, mode, 0, 0, wall_now() - t0);
+            node_stats_print(stderr, &g_app, &g_node.lat, &run, 0);
         }
-        if (o.stats != NULL && !write_stats(o.stats, &g_app, &g_node, mode, o.replay ? 0 : g_can.rcvbuf_actual,
-                                            wall_now() - t0)) {
+        if (o.stats != NULL && !node_stats_write(o.stats, &g_app, &g_node.lat, &run)) {
             rc = 1;
         }
     }
