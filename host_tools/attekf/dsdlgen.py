@@ -244,62 +244,74 @@ def _field_code(f, last: bool, put: bool, ind: str, base: str = "m->") -> List[s
     name = base + f.name
     if not isinstance(t, dsdl.ArrayType):
         return (_put_value if put else _get_value)(t, name, tao, ind)
-    vt, n = t.value_type, t.max_size
-    lines: List[str] = []
     if t.mode == t.MODE_STATIC:
-        lines.append(ind + f"for (i = 0; i < {n}u; ++i) {{")
-        lines += (_put_value if put else _get_value)(vt, f"{name}[i]", f"({tao} && i + 1u == {n}u)",
-                                                      ind + "    ")
-        lines.append(ind + "}")
-        return lines
-    len_bits = n.bit_length()
-    # The tail array optimisation: the last field of the top-level type, if its elements are at
-    # least a byte long, has no length prefix (the payload's length gives it). `tao` is a run-time
-    # flag only where the field is its struct's last one.
-    tao_ok = vt.get_min_bitlen() >= 8 and last
-    elem_tao = f"({tao} && i + 1u == {name}_len)" if last else "0"
-    # a length check the C type cannot fail (uint8_t against 255) would be a warning
+        n = t.max_size
+        return ([ind + f"for (i = 0; i < {n}u; ++i) {{"]
+                + (_put_value if put else _get_value)(t.value_type, f"{name}[i]",
+                                                      f"({tao} && i + 1u == {n}u)", ind + "    ")
+                + [ind + "}"])
+    return (_put_dynamic if put else _get_dynamic)(t, name, last, ind)
+
+
+def _dynamic_shape(t, name: str, last: bool):
+    """(length bits, tail array optimisation applies, element tao, the length check is vacuous).
+
+    The tail array optimisation: the last field of the top-level type, if its elements are at
+    least a byte long, has no length prefix (the payload's length gives it). `tao` is a run-time
+    flag only where the field is its struct's last one. A length check the C type cannot fail
+    (uint8_t against 255) would be a warning, so it is left out."""
+    n = t.max_size
+    tao_ok = t.value_type.get_min_bitlen() >= 8 and last
+    elem_tao = f"(tao && i + 1u == {name}_len)" if last else "0"
     full = n == (255 if len_ctype(n) == "uint8_t" else 65535)
-    if put:
-        if not full:
-            lines.append(ind + f"if ({name}_len > {n}u) {{")
-            lines.append(ind + "    w->error = 1u;")
-            lines.append(ind + "    return;")
-            lines.append(ind + "}")
-        if tao_ok:
-            lines.append(ind + f"if (!tao) {{")
-            lines.append(ind + f"    dsdl_put_u(w, {len_bits}u, {name}_len);")
-            lines.append(ind + "}")
-        else:
-            lines.append(ind + f"dsdl_put_u(w, {len_bits}u, {name}_len);")
-        lines.append(ind + f"for (i = 0; i < {name}_len; ++i) {{")
-        lines += _put_value(vt, f"{name}[i]", "0" if tao_ok else elem_tao, ind + "    ")
-        lines.append(ind + "}")
-        return lines
-    lt = len_ctype(n)
-    if tao_ok:
-        lines.append(ind + "if (tao) {")
-        lines.append(ind + "    /* tail array: as many elements as the payload holds */")
-        lines.append(ind + f"    {name}_len = 0u;")
-        lines.append(ind + f"    while (dsdl_left(r) >= 8u && {name}_len < {n}u) {{")
-        lines += _get_value(vt, f"{name}[{name}_len]", "0", ind + "        ")
-        lines.append(ind + f"        ++{name}_len;")
-        lines.append(ind + "    }")
-        lines.append(ind + "    if (dsdl_left(r) >= 8u) {")
-        lines.append(ind + "        r->error = 1u; /* more elements than the array holds */")
-        lines.append(ind + "    }")
-        lines.append(ind + "} else {")
-        sub = ind + "    "
-    else:
-        sub = ind
-    lines.append(sub + f"{name}_len = ({lt})dsdl_get_u(r, {len_bits}u);")
+    return n.bit_length(), tao_ok, ("0" if tao_ok else elem_tao), full
+
+
+def _put_dynamic(t, name: str, last: bool, ind: str) -> List[str]:
+    n = t.max_size
+    len_bits, tao_ok, elem_tao, full = _dynamic_shape(t, name, last)
+    lines: List[str] = []
     if not full:
-        lines.append(sub + f"if ({name}_len > {n}u) {{")
-        lines.append(sub + "    r->error = 1u;")
-        lines.append(sub + "    return;")
-        lines.append(sub + "}")
+        lines += [ind + f"if ({name}_len > {n}u) {{", ind + "    w->error = 1u;",
+                  ind + "    return;", ind + "}"]
+    if tao_ok:
+        lines += [ind + "if (!tao) {", ind + f"    dsdl_put_u(w, {len_bits}u, {name}_len);",
+                  ind + "}"]
+    else:
+        lines.append(ind + f"dsdl_put_u(w, {len_bits}u, {name}_len);")
+    lines.append(ind + f"for (i = 0; i < {name}_len; ++i) {{")
+    lines += _put_value(t.value_type, f"{name}[i]", elem_tao, ind + "    ")
+    lines.append(ind + "}")
+    return lines
+
+
+def _get_tail(t, name: str, ind: str) -> List[str]:
+    """The tail array: as many elements as the payload holds."""
+    n = t.max_size
+    return ([ind + "if (tao) {",
+             ind + "    /* tail array: as many elements as the payload holds */",
+             ind + f"    {name}_len = 0u;",
+             ind + f"    while (dsdl_left(r) >= 8u && {name}_len < {n}u) {{"]
+            + _get_value(t.value_type, f"{name}[{name}_len]", "0", ind + "        ")
+            + [ind + f"        ++{name}_len;",
+               ind + "    }",
+               ind + "    if (dsdl_left(r) >= 8u) {",
+               ind + "        r->error = 1u; /* more elements than the array holds */",
+               ind + "    }",
+               ind + "} else {"])
+
+
+def _get_dynamic(t, name: str, last: bool, ind: str) -> List[str]:
+    n = t.max_size
+    len_bits, tao_ok, elem_tao, full = _dynamic_shape(t, name, last)
+    lines = _get_tail(t, name, ind) if tao_ok else []
+    sub = ind + "    " if tao_ok else ind
+    lines.append(sub + f"{name}_len = ({len_ctype(n)})dsdl_get_u(r, {len_bits}u);")
+    if not full:
+        lines += [sub + f"if ({name}_len > {n}u) {{", sub + "    r->error = 1u;",
+                  sub + "    return;", sub + "}"]
     lines.append(sub + f"for (i = 0; i < {name}_len; ++i) {{")
-    lines += _get_value(vt, f"{name}[i]", "0" if tao_ok else elem_tao, sub + "    ")
+    lines += _get_value(t.value_type, f"{name}[i]", elem_tao, sub + "    ")
     lines.append(sub + "}")
     if tao_ok:
         lines.append(ind + "}")
@@ -462,119 +474,9 @@ def source_text(secs: List[Section]) -> str:
 
 
 # ---------------------------------------------------------------------------------------------
-# The test-side printer (tests/c/dronecan/dsdl_dump_gen.c)
-# ---------------------------------------------------------------------------------------------
-def _dump_value(t, expr: str, ind: str) -> List[str]:
-    dsdl = _dsdl()
-    if isinstance(t, dsdl.PrimitiveType):
-        if t.kind == t.KIND_FLOAT:
-            return [ind + f"dump_float(f, {expr});"]
-        if t.kind == t.KIND_SIGNED_INT:
-            return [ind + f'fprintf(f, "%lld", (long long){expr});']
-        return [ind + f'fprintf(f, "%llu", (unsigned long long){expr});']
-    if _is_empty_compound(t):
-        return [ind + 'fputs("{}", f);']
-    return [ind + f"dump_{c_stem(t.full_name)}(f, &{expr});"]
-
-
-def _dump_fn(sec: Section) -> List[str]:
-    dsdl = _dsdl()
-    lines = [f"static void dump_{sec.stem}(FILE *f, const {sec.stem}_t *m)", "{"]
-    named = [f for f in sec.fields if f.name]
-    if any(isinstance(f.type, dsdl.ArrayType) for f in named):
-        lines.append("    uint32_t i;")
-    lines.append('    fputc(\'{\', f);')
-    if sec.union:
-        lines.append("    switch (m->tag) {")
-        for k, f in enumerate(sec.fields):
-            lines.append(f"    case {k}u:")
-            lines.append(f'        fputs("\\"{f.name}\\": ", f);')
-            lines += _dump_field(f, "        ")
-            lines.append("        break;")
-        lines.append("    default:")
-        lines.append("        break;")
-        lines.append("    }")
-    else:
-        for k, f in enumerate(named):
-            sep = ", " if k else ""
-            lines.append(f'    fputs("{sep}\\"{f.name}\\": ", f);')
-            lines += _dump_field(f, "    ")
-    lines.append("    fputc('}', f);")
-    lines.append("}")
-    return lines
-
-
-def _dump_field(f, ind: str) -> List[str]:
-    dsdl = _dsdl()
-    t = f.type
-    name = "m->" + f.name
-    if not isinstance(t, dsdl.ArrayType):
-        return _dump_value(t, name, ind)
-    n = f"{t.max_size}u" if t.mode == t.MODE_STATIC else f"{name}_len"
-    return ([ind + "fputc('[', f);", ind + f"for (i = 0; i < {n}; ++i) {{",
-             ind + '    fputs(i ? ", " : "", f);']
-            + _dump_value(t.value_type, f"{name}[i]", ind + "    ")
-            + [ind + "}", ind + "fputc(']', f);"])
-
-
-def dump_text(secs: List[Section]) -> str:
-    out = [
-        "/*",
-        " * dsdl_dump_gen.c - GENERATED by host_tools/attekf/dsdlgen.py; do not edit. Prints a decoded",
-        " * DroneCAN payload of dsdl_gen.h as JSON (for tests/python/test_dsdl.py, through dsdl_check.c).",
-        " */",
-        '#include "dsdl_dump_gen.h"',
-        "",
-        "#include <math.h>",
-        "#include <string.h>",
-        "",
-        '#include "dsdl_gen.h"',
-        "",
-        "static void dump_float(FILE *f, float v)",
-        "{",
-        "    if (isnan(v)) {",
-        '        fputs("\\"nan\\"", f);',
-        "    } else if (isinf(v)) {",
-        '        fputs(v > 0.0f ? "\\"inf\\"" : "\\"-inf\\"", f);',
-        "    } else {",
-        '        fprintf(f, "%.9g", (double)v);',
-        "    }",
-        "}",
-        "",
-    ]
-    for sec in secs:
-        if sec.empty:
-            continue
-        out += _dump_fn(sec) + [""]
-    out += ["int dsdl_dump(FILE *f, const char *type, const uint8_t *buf, size_t len)", "{"]
-    for sec in secs:
-        if not sec.public:
-            continue
-        key = sec.full_name + {"message": "", "request": ".req", "response": ".resp"}[sec.kind]
-        out.append(f'    if (strcmp(type, "{key}") == 0) {{')
-        if sec.empty:
-            out.append('        fputs(len == 0u ? "{}" : "null", f);')
-            out.append("        return len == 0u ? 0 : -1;")
-        else:
-            out.append(f"        static {sec.stem}_t m;")
-            out.append(f"        static uint8_t again[{max(_max_bytes(sec), 1)}];")
-            out.append(f"        int n;")
-            out.append(f"        if ({sec.stem}_decode(&m, buf, len) != 0) {{")
-            out.append('            fputs("null", f);')
-            out.append("            return -1;")
-            out.append("        }")
-            out.append(f"        dump_{sec.stem}(f, &m);")
-            out.append("        memset(again, 0xFF, sizeof(again)); /* no byte left as it was */")
-            out.append(f"        n = {sec.stem}_encode(&m, again, sizeof(again));")
-            out.append("        /* decode -> encode gives the same bytes */")
-            out.append("        return (n == (int)len && memcmp(again, buf, len) == 0) ? 0 : -2;")
-        out.append("    }")
-    out += ["    return -3; /* unknown type */", "}", ""]
-    return "\n".join(out)
-
-
-# ---------------------------------------------------------------------------------------------
 def targets(root: Path) -> Dict[Path, str]:
+    from .dsdldump import dump_text  # the test-side printer (imports this module)
+
     secs = collect()
     return {root / GEN_H: header_text(secs), root / GEN_C: source_text(secs),
             root / GEN_DUMP: dump_text(secs)}
