@@ -99,75 +99,80 @@ void dbc_put_frame(hal_frame_t *f, uint32_t id, uint64_t t_us)
     f->t_us = t_us;
 }
 
+/* One vector frame (gyro, accelerometer or magnetometer) of a sample; *sat set if clamped. */
+static void encode_vector(int kind, const float v[3], uint16_t seq, uint64_t rx_us, hal_frame_t *frame,
+                          int *sat)
+{
+    float c[3];
+    int i;
+    if (kind == DBC_KIND_GYRO) {
+        struct canmsg_imu_gyro_t m;
+        const float lim = canmsg_imu_gyro_gyro_x_decode(INT16_MAX);
+        for (i = 0; i < 3; ++i) {
+            c[i] = dbc_clamp(v[i], -lim, lim, sat);
+        }
+        m.gyro_x = canmsg_imu_gyro_gyro_x_encode(c[0]);
+        m.gyro_y = canmsg_imu_gyro_gyro_y_encode(c[1]);
+        m.gyro_z = canmsg_imu_gyro_gyro_z_encode(c[2]);
+        m.seq = seq;
+        (void)canmsg_imu_gyro_pack(frame->data, &m, 8u);
+        dbc_put_frame(frame, CANMSG_IMU_GYRO_FRAME_ID, rx_us);
+    } else if (kind == DBC_KIND_ACCEL) {
+        struct canmsg_imu_accel_t m;
+        const float lim = canmsg_imu_accel_accel_x_decode(INT16_MAX);
+        for (i = 0; i < 3; ++i) {
+            c[i] = dbc_clamp(v[i], -lim, lim, sat);
+        }
+        m.accel_x = canmsg_imu_accel_accel_x_encode(c[0]);
+        m.accel_y = canmsg_imu_accel_accel_y_encode(c[1]);
+        m.accel_z = canmsg_imu_accel_accel_z_encode(c[2]);
+        m.seq = seq;
+        (void)canmsg_imu_accel_pack(frame->data, &m, 8u);
+        dbc_put_frame(frame, CANMSG_IMU_ACCEL_FRAME_ID, rx_us);
+    } else {
+        struct canmsg_imu_mag_t m;
+        const float lim = canmsg_imu_mag_mag_x_decode(INT16_MAX);
+        for (i = 0; i < 3; ++i) {
+            c[i] = dbc_clamp(v[i], -lim, lim, sat);
+        }
+        m.mag_x = canmsg_imu_mag_mag_x_encode(c[0]);
+        m.mag_y = canmsg_imu_mag_mag_y_encode(c[1]);
+        m.mag_z = canmsg_imu_mag_mag_z_encode(c[2]);
+        m.seq = seq;
+        (void)canmsg_imu_mag_pack(frame->data, &m, 8u);
+        dbc_put_frame(frame, CANMSG_IMU_MAG_FRAME_ID, rx_us);
+    }
+}
+
 size_t dbc_encode_sample(const hal_sample_t *s, hal_frame_t frames[DBC_SAMPLE_FRAMES])
 {
     size_t n = 0;
     uint8_t valid = 0u;
     uint8_t satbits = 0u;
+    struct canmsg_imu_sync_t m;
     int k;
     for (k = DBC_KIND_GYRO; k <= DBC_KIND_MAG; ++k) {
         const uint8_t bit = (uint8_t)(1u << k);
         const float *v = (k == DBC_KIND_GYRO) ? s->gyro : (k == DBC_KIND_ACCEL) ? s->accel : s->mag;
         int sat = 0;
-        float c[3];
-        int i;
         if ((s->valid & bit) == 0u || !isfinite(v[0]) || !isfinite(v[1]) || !isfinite(v[2])) {
             continue;
         }
-        if (k == DBC_KIND_GYRO) {
-            struct canmsg_imu_gyro_t m;
-            const float lim = canmsg_imu_gyro_gyro_x_decode(INT16_MAX);
-            for (i = 0; i < 3; ++i) {
-                c[i] = dbc_clamp(v[i], -lim, lim, &sat);
-            }
-            m.gyro_x = canmsg_imu_gyro_gyro_x_encode(c[0]);
-            m.gyro_y = canmsg_imu_gyro_gyro_y_encode(c[1]);
-            m.gyro_z = canmsg_imu_gyro_gyro_z_encode(c[2]);
-            m.seq = s->seq;
-            (void)canmsg_imu_gyro_pack(frames[n].data, &m, 8u);
-            dbc_put_frame(&frames[n++], CANMSG_IMU_GYRO_FRAME_ID, s->rx_us);
-        } else if (k == DBC_KIND_ACCEL) {
-            struct canmsg_imu_accel_t m;
-            const float lim = canmsg_imu_accel_accel_x_decode(INT16_MAX);
-            for (i = 0; i < 3; ++i) {
-                c[i] = dbc_clamp(v[i], -lim, lim, &sat);
-            }
-            m.accel_x = canmsg_imu_accel_accel_x_encode(c[0]);
-            m.accel_y = canmsg_imu_accel_accel_y_encode(c[1]);
-            m.accel_z = canmsg_imu_accel_accel_z_encode(c[2]);
-            m.seq = s->seq;
-            (void)canmsg_imu_accel_pack(frames[n].data, &m, 8u);
-            dbc_put_frame(&frames[n++], CANMSG_IMU_ACCEL_FRAME_ID, s->rx_us);
-        } else {
-            struct canmsg_imu_mag_t m;
-            const float lim = canmsg_imu_mag_mag_x_decode(INT16_MAX);
-            for (i = 0; i < 3; ++i) {
-                c[i] = dbc_clamp(v[i], -lim, lim, &sat);
-            }
-            m.mag_x = canmsg_imu_mag_mag_x_encode(c[0]);
-            m.mag_y = canmsg_imu_mag_mag_y_encode(c[1]);
-            m.mag_z = canmsg_imu_mag_mag_z_encode(c[2]);
-            m.seq = s->seq;
-            (void)canmsg_imu_mag_pack(frames[n].data, &m, 8u);
-            dbc_put_frame(&frames[n++], CANMSG_IMU_MAG_FRAME_ID, s->rx_us);
-        }
+        encode_vector(k, v, s->seq, s->rx_us, &frames[n++], &sat);
         valid |= bit;
         if (sat || (s->saturated & bit) != 0u) {
             satbits |= bit;
         }
     }
-    {
-        struct canmsg_imu_sync_t m;
-        m.time_us = (uint32_t)(s->t_us & 0xFFFFFFFFu);
-        m.seq = s->seq;
-        m.has_gyro = (valid & HAL_HAS_GYRO) ? 1u : 0u;
-        m.has_accel = (valid & HAL_HAS_ACCEL) ? 1u : 0u;
-        m.has_mag = (valid & HAL_HAS_MAG) ? 1u : 0u;
-        m.sat_gyro = (satbits & HAL_HAS_GYRO) ? 1u : 0u;
-        m.sat_accel = (satbits & HAL_HAS_ACCEL) ? 1u : 0u;
-        m.sat_mag = (satbits & HAL_HAS_MAG) ? 1u : 0u;
-        (void)canmsg_imu_sync_pack(frames[n].data, &m, 8u);
-        dbc_put_frame(&frames[n++], CANMSG_IMU_SYNC_FRAME_ID, s->rx_us);
-    }
+    m.time_us = (uint32_t)(s->t_us & 0xFFFFFFFFu);
+    m.seq = s->seq;
+    m.has_gyro = (valid & HAL_HAS_GYRO) ? 1u : 0u;
+    m.has_accel = (valid & HAL_HAS_ACCEL) ? 1u : 0u;
+    m.has_mag = (valid & HAL_HAS_MAG) ? 1u : 0u;
+    m.sat_gyro = (satbits & HAL_HAS_GYRO) ? 1u : 0u;
+    m.sat_accel = (satbits & HAL_HAS_ACCEL) ? 1u : 0u;
+    m.sat_mag = (satbits & HAL_HAS_MAG) ? 1u : 0u;
+    (void)canmsg_imu_sync_pack(frames[n].data, &m, 8u);
+    dbc_put_frame(&frames[n++], CANMSG_IMU_SYNC_FRAME_ID, s->rx_us);
     return n;
 }

@@ -96,73 +96,97 @@ static uint32_t unpack_counter(const struct canmsg_att_counters_t *m)
     }
 }
 
+/* ATT_EULER, ATT_RATES, ATT_SIGMA of an attitude output; returns 1 if a value was clamped. */
+static int encode_attitude(const dbc_tx_t *tx, const app_output_t *out, hal_frame_t frames[3])
+{
+    /* Wire ranges from the generated decoders: the largest raw values of the signals. */
+    const float amax = canmsg_att_euler_roll_decode(INT16_MAX);
+    const float rmax = canmsg_att_rates_rate_p_decode(INT16_MAX);
+    const float smax = canmsg_att_sigma_sigma_roll_decode(UINT16_MAX);
+    const uint64_t t = out->rx_us;
+    int sat = 0;
+    struct canmsg_att_euler_t e;
+    struct canmsg_att_rates_t r;
+    struct canmsg_att_sigma_t s;
+    e.roll = canmsg_att_euler_roll_encode(dbc_clamp(out->euler[0], -amax, amax, &sat));
+    e.pitch = canmsg_att_euler_pitch_encode(dbc_clamp(out->euler[1], -amax, amax, &sat));
+    e.yaw = canmsg_att_euler_yaw_encode(dbc_clamp(out->euler[2], -amax, amax, &sat));
+    e.seq = out->seq;
+    dbc_put_frame(&frames[0], node_id(tx, CANMSG_ATT_EULER_FRAME_ID), t);
+    (void)canmsg_att_euler_pack(frames[0].data, &e, 8u);
+    r.rate_p = canmsg_att_rates_rate_p_encode(dbc_clamp(out->rates[0], -rmax, rmax, &sat));
+    r.rate_q = canmsg_att_rates_rate_q_encode(dbc_clamp(out->rates[1], -rmax, rmax, &sat));
+    r.rate_r = canmsg_att_rates_rate_r_encode(dbc_clamp(out->rates[2], -rmax, rmax, &sat));
+    r.seq = out->seq;
+    dbc_put_frame(&frames[1], node_id(tx, CANMSG_ATT_RATES_FRAME_ID), t);
+    (void)canmsg_att_rates_pack(frames[1].data, &r, 8u);
+    s.sigma_roll = canmsg_att_sigma_sigma_roll_encode(dbc_clamp(out->sigma[0], 0.0f, smax, &sat));
+    s.sigma_pitch = canmsg_att_sigma_sigma_pitch_encode(dbc_clamp(out->sigma[1], 0.0f, smax, &sat));
+    s.sigma_yaw = canmsg_att_sigma_sigma_yaw_encode(dbc_clamp(out->sigma[2], 0.0f, smax, &sat));
+    s.seq = out->seq;
+    dbc_put_frame(&frames[2], node_id(tx, CANMSG_ATT_SIGMA_FRAME_ID), t);
+    (void)canmsg_att_sigma_pack(frames[2].data, &s, 8u);
+    return sat;
+}
+
+static void encode_status(const dbc_tx_t *tx, const app_output_t *out, uint16_t flags, hal_frame_t *frame)
+{
+    struct canmsg_att_status_t st;
+    st.aligned = (flags & APP_FLAG_ALIGNED) ? 1u : 0u;
+    st.stale = (flags & APP_FLAG_STALE) ? 1u : 0u;
+    st.gap = (flags & APP_FLAG_GAP) ? 1u : 0u;
+    st.in_saturated = (flags & APP_FLAG_IN_SATURATED) ? 1u : 0u;
+    st.out_saturated = (flags & APP_FLAG_OUT_SATURATED) ? 1u : 0u;
+    st.link_error = (flags & APP_FLAG_LINK_ERROR) ? 1u : 0u;
+    st.frame_error = (flags & APP_FLAG_FRAME_ERROR) ? 1u : 0u;
+    st.incomplete = (flags & APP_FLAG_INCOMPLETE) ? 1u : 0u;
+    st.ekf_reject = (flags & APP_FLAG_EKF_REJECT) ? 1u : 0u;
+    st.time_error = (flags & APP_FLAG_TIME_ERROR) ? 1u : 0u;
+    st.restarted = (flags & APP_FLAG_RESTARTED) ? 1u : 0u;
+    st.heartbeat = (flags & APP_FLAG_HEARTBEAT) ? 1u : 0u;
+    st.config_pending = (flags & APP_FLAG_CONFIG_PENDING) ? 1u : 0u;
+    st.att_flags = (uint16_t)(out->att_flags & 0xFFFFu);
+    st.seq = out->seq;
+    st.out_index = out->index;
+    dbc_put_frame(frame, node_id(tx, CANMSG_ATT_STATUS_FRAME_ID), out->rx_us);
+    (void)canmsg_att_status_pack(frame->data, &st, 8u);
+}
+
 size_t dbc_encode_output(dbc_tx_t *tx, const app_output_t *out, hal_frame_t frames[DBC_MAX_OUT_FRAMES])
 {
     size_t n = 0;
-    int sat = 0;
     uint16_t flags = out->flags;
-    const uint64_t t = out->rx_us;
+    struct canmsg_att_counters_t c;
 
     if (out->kind == APP_OUT_ATTITUDE) {
-        /* Wire ranges from the generated decoders: the largest raw values of the signals. */
-        const float amax = canmsg_att_euler_roll_decode(INT16_MAX);
-        const float rmax = canmsg_att_rates_rate_p_decode(INT16_MAX);
-        const float smax = canmsg_att_sigma_sigma_roll_decode(UINT16_MAX);
-        struct canmsg_att_euler_t e;
-        struct canmsg_att_rates_t r;
-        struct canmsg_att_sigma_t s;
-        e.roll = canmsg_att_euler_roll_encode(dbc_clamp(out->euler[0], -amax, amax, &sat));
-        e.pitch = canmsg_att_euler_pitch_encode(dbc_clamp(out->euler[1], -amax, amax, &sat));
-        e.yaw = canmsg_att_euler_yaw_encode(dbc_clamp(out->euler[2], -amax, amax, &sat));
-        e.seq = out->seq;
-        dbc_put_frame(&frames[n], node_id(tx, CANMSG_ATT_EULER_FRAME_ID), t);
-        (void)canmsg_att_euler_pack(frames[n++].data, &e, 8u);
-        r.rate_p = canmsg_att_rates_rate_p_encode(dbc_clamp(out->rates[0], -rmax, rmax, &sat));
-        r.rate_q = canmsg_att_rates_rate_q_encode(dbc_clamp(out->rates[1], -rmax, rmax, &sat));
-        r.rate_r = canmsg_att_rates_rate_r_encode(dbc_clamp(out->rates[2], -rmax, rmax, &sat));
-        r.seq = out->seq;
-        dbc_put_frame(&frames[n], node_id(tx, CANMSG_ATT_RATES_FRAME_ID), t);
-        (void)canmsg_att_rates_pack(frames[n++].data, &r, 8u);
-        s.sigma_roll = canmsg_att_sigma_sigma_roll_encode(dbc_clamp(out->sigma[0], 0.0f, smax, &sat));
-        s.sigma_pitch = canmsg_att_sigma_sigma_pitch_encode(dbc_clamp(out->sigma[1], 0.0f, smax, &sat));
-        s.sigma_yaw = canmsg_att_sigma_sigma_yaw_encode(dbc_clamp(out->sigma[2], 0.0f, smax, &sat));
-        s.seq = out->seq;
-        dbc_put_frame(&frames[n], node_id(tx, CANMSG_ATT_SIGMA_FRAME_ID), t);
-        (void)canmsg_att_sigma_pack(frames[n++].data, &s, 8u);
-        if (sat) {
+        if (encode_attitude(tx, out, frames)) {
             flags |= APP_FLAG_OUT_SATURATED;
         }
+        n = 3;
     }
-    {
-        struct canmsg_att_status_t st;
-        st.aligned = (flags & APP_FLAG_ALIGNED) ? 1u : 0u;
-        st.stale = (flags & APP_FLAG_STALE) ? 1u : 0u;
-        st.gap = (flags & APP_FLAG_GAP) ? 1u : 0u;
-        st.in_saturated = (flags & APP_FLAG_IN_SATURATED) ? 1u : 0u;
-        st.out_saturated = (flags & APP_FLAG_OUT_SATURATED) ? 1u : 0u;
-        st.link_error = (flags & APP_FLAG_LINK_ERROR) ? 1u : 0u;
-        st.frame_error = (flags & APP_FLAG_FRAME_ERROR) ? 1u : 0u;
-        st.incomplete = (flags & APP_FLAG_INCOMPLETE) ? 1u : 0u;
-        st.ekf_reject = (flags & APP_FLAG_EKF_REJECT) ? 1u : 0u;
-        st.time_error = (flags & APP_FLAG_TIME_ERROR) ? 1u : 0u;
-        st.restarted = (flags & APP_FLAG_RESTARTED) ? 1u : 0u;
-        st.heartbeat = (flags & APP_FLAG_HEARTBEAT) ? 1u : 0u;
-        st.config_pending = (flags & APP_FLAG_CONFIG_PENDING) ? 1u : 0u;
-        st.att_flags = (uint16_t)(out->att_flags & 0xFFFFu);
-        st.seq = out->seq;
-        st.out_index = out->index;
-        dbc_put_frame(&frames[n], node_id(tx, CANMSG_ATT_STATUS_FRAME_ID), t);
-        (void)canmsg_att_status_pack(frames[n++].data, &st, 8u);
-    }
-    {
-        struct canmsg_att_counters_t c;
-        memset(&c, 0, sizeof(c));
-        pack_counter(&c, tx->page, out->counters[tx->page]);
-        dbc_put_frame(&frames[n], node_id(tx, CANMSG_ATT_COUNTERS_FRAME_ID), t);
-        (void)canmsg_att_counters_pack(frames[n++].data, &c, 8u);
-        tx->page = (uint8_t)((tx->page + 1u) % APP_CNT_COUNT);
-    }
+    encode_status(tx, out, flags, &frames[n++]);
+    memset(&c, 0, sizeof(c));
+    pack_counter(&c, tx->page, out->counters[tx->page]);
+    dbc_put_frame(&frames[n], node_id(tx, CANMSG_ATT_COUNTERS_FRAME_ID), out->rx_us);
+    (void)canmsg_att_counters_pack(frames[n++].data, &c, 8u);
+    tx->page = (uint8_t)((tx->page + 1u) % APP_CNT_COUNT);
     return n;
+}
+
+/* The output flags of an ATT_STATUS frame. */
+static uint16_t status_flags(const struct canmsg_att_status_t *m)
+{
+    return (uint16_t)((m->aligned ? APP_FLAG_ALIGNED : 0u) | (m->stale ? APP_FLAG_STALE : 0u) |
+                      (m->gap ? APP_FLAG_GAP : 0u) | (m->in_saturated ? APP_FLAG_IN_SATURATED : 0u) |
+                      (m->out_saturated ? APP_FLAG_OUT_SATURATED : 0u) |
+                      (m->link_error ? APP_FLAG_LINK_ERROR : 0u) |
+                      (m->frame_error ? APP_FLAG_FRAME_ERROR : 0u) |
+                      (m->incomplete ? APP_FLAG_INCOMPLETE : 0u) |
+                      (m->ekf_reject ? APP_FLAG_EKF_REJECT : 0u) |
+                      (m->time_error ? APP_FLAG_TIME_ERROR : 0u) |
+                      (m->restarted ? APP_FLAG_RESTARTED : 0u) |
+                      (m->heartbeat ? APP_FLAG_HEARTBEAT : 0u) |
+                      (m->config_pending ? APP_FLAG_CONFIG_PENDING : 0u));
 }
 
 int dbc_decode_output(const hal_frame_t *frame, app_output_t *out)
@@ -201,17 +225,7 @@ int dbc_decode_output(const hal_frame_t *frame, app_output_t *out)
     case CANMSG_ATT_STATUS_FRAME_ID: {
         struct canmsg_att_status_t m;
         (void)canmsg_att_status_unpack(&m, frame->data, 8u);
-        out->flags = (uint16_t)((m.aligned ? APP_FLAG_ALIGNED : 0u) | (m.stale ? APP_FLAG_STALE : 0u) |
-                                (m.gap ? APP_FLAG_GAP : 0u) | (m.in_saturated ? APP_FLAG_IN_SATURATED : 0u) |
-                                (m.out_saturated ? APP_FLAG_OUT_SATURATED : 0u) |
-                                (m.link_error ? APP_FLAG_LINK_ERROR : 0u) |
-                                (m.frame_error ? APP_FLAG_FRAME_ERROR : 0u) |
-                                (m.incomplete ? APP_FLAG_INCOMPLETE : 0u) |
-                                (m.ekf_reject ? APP_FLAG_EKF_REJECT : 0u) |
-                                (m.time_error ? APP_FLAG_TIME_ERROR : 0u) |
-                                (m.restarted ? APP_FLAG_RESTARTED : 0u) |
-                                (m.heartbeat ? APP_FLAG_HEARTBEAT : 0u) |
-                                (m.config_pending ? APP_FLAG_CONFIG_PENDING : 0u));
+        out->flags = status_flags(&m);
         out->kind = m.heartbeat ? (uint8_t)APP_OUT_HEARTBEAT : (uint8_t)APP_OUT_ATTITUDE;
         out->att_flags = m.att_flags;
         out->seq = m.seq;
