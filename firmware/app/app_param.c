@@ -21,13 +21,20 @@ static const app_param_info_t app_rows[APP_P_COUNT] = {APP_PARAMS(APP_PARAM_ROW)
 
 size_t app_param_count(void) { return att_setting_count() + (size_t)APP_P_COUNT; }
 
+/* Whole milliseconds of a time in microseconds (the parameters are in ms). */
+static float whole_ms(uint64_t us)
+{
+    const uint64_t ms = us / 1000u;
+    return (float)ms;
+}
+
 static float app_field(const app_config_t *c, int id)
 {
     switch (id) {
     case APP_P_OUTPUT_PERIOD: return (float)c->app.output_period_us;
-    case APP_P_STALE: return (float)(c->app.stale_timeout_us / 1000u);
-    case APP_P_HEARTBEAT: return (float)(c->app.heartbeat_period_us / 1000u);
-    case APP_P_MAX_GAP: return (float)(c->app.max_gap_us / 1000u);
+    case APP_P_STALE: return whole_ms(c->app.stale_timeout_us);
+    case APP_P_HEARTBEAT: return whole_ms(c->app.heartbeat_period_us);
+    case APP_P_MAX_GAP: return whole_ms(c->app.max_gap_us);
     case APP_P_SEQ_WINDOW: return (float)c->app.seq_window;
     case APP_P_PROTOCOL: return (float)c->node.protocol;
     case APP_P_INPUT: return (float)c->node.input;
@@ -218,6 +225,7 @@ int app_config_read_line(app_config_t *cfg, const char *line, char *err, size_t 
     }
     if (app_config_set(cfg, (size_t)i, (float)v) != APP_PARAM_OK) {
         app_param_info_t info;
+        memset(&info, 0, sizeof(info));
         (void)app_param_info((size_t)i, &info);
         snprintf(err, err_size, "%s = %g: outside [%g, %g]%s, or inconsistent with another parameter", name, v,
                  (double)info.lo, (double)info.hi, info.integer ? " or not a whole number" : "");

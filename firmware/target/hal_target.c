@@ -224,12 +224,13 @@ static int read_command(hal_target_t *t)
         while (*end == ' ' || *end == '\t') {
             ++end;
         }
-        if (strlen(end) >= sizeof t->next_cmd.text) {
+        len = strlen(end);
+        if (len >= sizeof t->next_cmd.text) {
             fail_at(t, t->cmd_name, t->cmd_lineno, "command too long", "");
             return 0;
         }
         t->next_cmd.t_us = (uint64_t)(ts * 1e6 + 0.5);
-        strcpy(t->next_cmd.text, end);
+        memcpy(t->next_cmd.text, end, len + 1u);
         return 1;
     }
     if (ferror(t->cmd)) {

@@ -374,12 +374,15 @@ static hal_status_t op_send_frames(void *ctx, const hal_frame_t *frames, size_t 
         struct can_frame cf[SEND_BATCH];
         struct iovec iov[SEND_BATCH];
         struct mmsghdr mm[SEND_BATCH];
-        const size_t k = (n - done < SEND_BATCH) ? n - done : SEND_BATCH;
+        size_t k = n - done; /* > 0 */
         size_t i;
         int sent;
         if (c->fd < 0) {
             hal_count_n(&c->stats.tx_errors, (uint32_t)(n - done));
             return HAL_ERR_LINK_DOWN;
+        }
+        if (k > SEND_BATCH) {
+            k = SEND_BATCH;
         }
         memset(mm, 0, sizeof(mm));
         for (i = 0; i < k; ++i) {
