@@ -65,7 +65,7 @@ static uint32_t get_bits(dsdl_reader_t *r, uint32_t nbits)
 {
     uint32_t v = 0u, k;
     for (k = 0u; k < nbits; ++k) {
-        const uint32_t bit = (r->buf[r->bit / 8u] >> (7u - r->bit % 8u)) & 1u;
+        const uint32_t bit = ((uint32_t)r->buf[r->bit / 8u] >> (7u - r->bit % 8u)) & 1u;
         v = (v << 1) | bit;
         ++r->bit;
     }
