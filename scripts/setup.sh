@@ -24,7 +24,7 @@ log() { printf '[setup] %s\n' "$*"; }
 
 # --- Debian packages ---------------------------------------------------------------
 APT_PACKAGES=(
-  build-essential cmake ninja-build git pkgconf python3 python3-venv python3-pip
+  build-essential cmake ninja-build git pkgconf python3 python3-dev python3-venv python3-pip
   gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm
   libstdc++-arm-none-eabi-newlib
   user-mode-linux kmod iproute2 can-utils
@@ -88,7 +88,7 @@ else
   log "Python packages present"
 fi
 
-# --- Build (host, float and double cores, tests, shared library for the binding) -------
+# --- Build (host, the three scalar builds, tests, the Python extension modules) --------
 log "configuring and building build/host"
 cmake -S "$ROOT" -B "$ROOT/build/host" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
       -DPython3_EXECUTABLE="$VENV/bin/python" >/dev/null

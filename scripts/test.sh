@@ -42,9 +42,10 @@ grep -h "^ATTEKF-SKIP:" "$ROOT/build/host/Testing/Temporary/LastTest.log" 2>/dev
 step "Cortex-M builds under QEMU (scripts/test_target.sh)" "$ROOT/scripts/test_target.sh"
 step "pytest" "$ROOT/.venv/bin/python" -m pytest "$ROOT/tests/python" -q -ra
 
-# The pip package as a user gets it: sdist -> wheel (CMake) -> a fresh virtual environment
-# outside the repository, every command and the Python API there (tests/package/).
-echo "[test] Python package from its sdist in a fresh virtual environment (tests/package)"
+# The pip package as a user gets it: sdist -> platform wheel (CMake) -> a fresh virtual
+# environment outside the repository without a C compiler, numpy alone then the extras, every
+# command and the Python API there (tests/package/).
+echo "[test] Python package: its wheel in a fresh virtual environment without a compiler (tests/package)"
 "$ROOT/.venv/bin/python" -m pytest "$ROOT/tests/package" -q -ra || status=1
 
 # Reliability (docs/reliability.md): static analysis, the ctest under ASan + UBSan, valgrind on

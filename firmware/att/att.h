@@ -120,6 +120,8 @@ typedef struct {
     uint8_t tilt_ok;            /* last accelerometer update: fused, no linear acceleration,
                                    every innovation within 3 sigma (heading resets need it) */
     ekf_scalar_t last_dt;       /* s, of the last prediction (time base of the running means) */
+    ekf_scalar_t dt_nom;        /* s: the sample interval without gaps (a running mean of the
+                                   steps that are not gaps; 0 before the first) */
     att_rest_t rest;            /* rest detector and gyroscope offset */
     att_bias_t bias;            /* gyroscope offset in motion (residual of the rest offset) */
     att_consider_t consider;    /* error sources carried in the reported covariance only */
@@ -248,6 +250,9 @@ void att_get_euler_rates(const att_ekf_t *f, ekf_scalar_t e[3]);     /* rad/s */
 /* Gyroscope offset (rad/s, body frame) subtracted from every gyro sample: learned at rest,
  * plus what the bias filter learned in motion (att_bias.h). */
 void att_get_gyro_bias(const att_ekf_t *f, ekf_scalar_t b[3]);
+/* 1-sigma uncertainty of that offset per body axis (rad/s): the square roots of the bias
+ * filter's variances (att_bias.h, Pb), which at rest follow the rest average's own. */
+void att_get_gyro_bias_sigma(const att_ekf_t *f, ekf_scalar_t sigma[3]);
 void att_get_quaternion(const att_ekf_t *f, ekf_scalar_t q[4]);      /* w, x, y, z: body to ENU */
 /* Variances of the state errors: the diagonal of P, and for the angles that of the
  * attitude covariance of att_get_angle_covariance (P plus the gyroscope offset's, the
@@ -261,6 +266,7 @@ void att_get_variances(const att_ekf_t *f, ekf_scalar_t var[ATT_N]);
 void att_get_angle_covariance(const att_ekf_t *f, ekf_scalar_t c[6]);
 void att_get_covariance(const att_ekf_t *f, ekf_scalar_t P[ATT_N * ATT_N]); /* all of P, row-major */
 const ekf_scalar_t *att_state(const att_ekf_t *f);                   /* x[ATT_N] */
+const att_settings_t *att_settings(const att_ekf_t *f);              /* the settings in force */
 uint32_t att_flags(const att_ekf_t *f);
 const att_diag_t *att_diag(const att_ekf_t *f);
 

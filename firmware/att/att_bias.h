@@ -48,6 +48,7 @@ typedef struct {
     ekf_scalar_t b[3];  /* rad/s, body frame: residual offset learned in motion */
     ekf_scalar_t Pb[6]; /* ATT_BIAS_UNIT^2 ((mrad/s)^2), packed: 00, 11, 22, 01, 02, 12 */
     ekf_scalar_t V[9];  /* s: d(phi, theta, psi) / d b, row-major (rows: angles) */
+    ekf_scalar_t hold;  /* s: no learning until this has run out (att_bias_hold) */
 } att_bias_t;
 
 /* Offset zero, covariance sigma_init^2 I, no sensitivity. */
@@ -60,9 +61,14 @@ void att_bias_restart(att_bias_t *bf);
 /* One prediction of length dt (s) with D1 = F1 - I, the angle rows of the transition's
  * first factor (att_gen_transition_factors, d1 in the order of att_gen_f1_pattern): V
  * follows the angles' dependence on the body rates, which carry the offset, and on the
- * angles; Pb grows by walk^2 dt. */
+ * angles; Pb grows by walk^2 dt; the hold runs down; unless the magnetometer learns it
+ * (motion 2), the offset's part along up[3] (the earth's vertical in body axes, unit) decays
+ * with vertical_tau. */
 void att_bias_predict(att_bias_t *bf, const att_bias_settings_t *s, const ekf_scalar_t d1[ATT_GEN_F1_NNZ],
-                      ekf_scalar_t dt);
+                      const ekf_scalar_t up[3], ekf_scalar_t dt);
+
+/* No learning for the next t seconds (evidence the offset cannot explain). */
+void att_bias_hold(att_bias_t *bf, ekf_scalar_t t);
 
 /* After an EKF scalar update with row h over the angles (h[3]: its entries at phi, theta,
  * psi) was fused: pht[3] = the angle rows of P h^T before the update, nu the innovation,

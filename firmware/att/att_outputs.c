@@ -29,6 +29,15 @@ void att_get_gyro_bias(const att_ekf_t *f, ekf_scalar_t b[3])
     }
 }
 
+void att_get_gyro_bias_sigma(const att_ekf_t *f, ekf_scalar_t sigma[3])
+{
+    int i;
+    /* Pb is packed (00, 11, 22, ...) in units of ATT_BIAS_UNIT^2 (att_bias.h) */
+    for (i = 0; i < 3; ++i) {
+        sigma[i] = ekf_mul(ekf_sqrt(f->vars.bias.Pb[i]), ATT_BIAS_UNIT);
+    }
+}
+
 void att_get_euler_rates(const att_ekf_t *f, ekf_scalar_t e[3])
 {
     e[0] = f->vars.x[ATT_PHID];
@@ -80,5 +89,6 @@ void att_get_variances(const att_ekf_t *f, ekf_scalar_t var[ATT_N])
 
 void att_get_covariance(const att_ekf_t *f, ekf_scalar_t P[ATT_N * ATT_N]) { att_cov_to_full(&f->vars.cov, P); }
 const ekf_scalar_t *att_state(const att_ekf_t *f) { return f->vars.x; }
+const att_settings_t *att_settings(const att_ekf_t *f) { return &f->settings; }
 uint32_t att_flags(const att_ekf_t *f) { return f->vars.flags; }
 const att_diag_t *att_diag(const att_ekf_t *f) { return &f->vars.diag; }

@@ -54,25 +54,40 @@ static void turn_vector(const ekf_scalar_t C[9], ekf_scalar_t vec[3])
  * accelerometer sample is blended in (att_update.c). Gravity is earth-fixed, so it passes
  * without lag; linear acceleration that averages to zero in the earth frame (shaking,
  * vibration) is filtered out (docs/derivation.md, "Linear acceleration"). */
-static void accel_lp_turn(att_vars_t *v, const att_settings_t *s, const att_motion_t *mo, ekf_scalar_t dt)
+static void accel_lp_turn(att_vars_t *v, const att_settings_t *s, const att_motion_t *mo)
 {
-    ekf_scalar_t th2 = EKF_C(0);
-    int i;
     if (!v->accel_lp_valid) {
-        return;
-    }
-    for (i = 0; i < 3; ++i) {
-        th2 = ekf_add(th2, ekf_sq(ekf_mul(v->x[ATT_P + i], dt)));
-    }
-    if (th2 > EKF_C(0.25)) {
-        /* more than half a radian in one step (a gap, or beyond any IMU's rate): the body's
-         * turn over the step is a guess; start again from the next sample */
-        v->accel_lp_valid = 0u;
         return;
     }
     turn_vector(mo->rot, v->accel_lp);
     if (s->accel_lpf_order > 1u) {
         turn_vector(mo->rot, v->accel_lp1);
+    }
+}
+
+/* A step longer than the sample interval by more than half of it is a gap: the body rate
+ * was not measured over the excess e, and its random walk integrates into the angles,
+ * rate_walk^2 e^3 / 3 in each body axis (the integrated random walk), mapped to the Euler
+ * angles by W's rows (sec^2 theta, 1, sec^2 theta; their correlations left out, which only
+ * overstates). The offset learned in motion does not learn from the errors that follow.
+ * Steps that are not gaps keep the interval's running mean (docs/derivation.md, "Gaps"). */
+static void gap_noise(att_vars_t *v, const att_settings_t *s, const att_motion_t *mo, ekf_scalar_t dt)
+{
+    if (!(v->dt_nom > EKF_C(0))) {
+        v->dt_nom = dt;
+    } else if (dt > ekf_mul(EKF_C(1.5), v->dt_nom)) {
+        const ekf_scalar_t e = ekf_sub(dt, v->dt_nom);
+        const ekf_scalar_t q = ekf_div(ekf_mul(ekf_mul(ekf_sq(s->rate_walk), ekf_sq(e)), e), EKF_C(3));
+        const ekf_scalar_t sec2 = ekf_sq(mo->t.secth);
+        att_cov_add_var(&v->cov, ATT_PHI, ekf_mul(q, sec2));
+        att_cov_add_var(&v->cov, ATT_THETA, q);
+        att_cov_add_var(&v->cov, ATT_PSI, ekf_mul(q, sec2));
+        if (q > ekf_min(att_cov_var(&v->cov, ATT_PHI), att_cov_var(&v->cov, ATT_THETA))) {
+            /* an error the tilt's own uncertainty does not cover */
+            att_bias_hold(&v->bias, s->bias.hold_time);
+        }
+    } else {
+        v->dt_nom = ekf_mac(v->dt_nom, ekf_div(dt, ekf_add(EKF_C(0.2), dt)), ekf_sub(dt, v->dt_nom));
     }
 }
 
@@ -105,7 +120,12 @@ ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scala
         att_cov_add_var(&v->cov, ATT_PHI + i, ekf_mul(s->euler_rate_rel, inc_var[i]));
     }
     att_cov_scale_diag(&v->cov, ATT_PHID, 3, s->euler_rate_rel);
-    att_bias_predict(&v->bias, &s->bias, d1, dt);
+    gap_noise(v, s, &mo, dt);
+    {
+        /* the earth's vertical in the new body axes */
+        const ekf_scalar_t up[3] = {ekf_neg(mo.t.sth), ekf_mul(mo.t.sphi, mo.t.cth), ekf_mul(mo.t.cphi, mo.t.cth)};
+        att_bias_predict(&v->bias, &s->bias, d1, up, dt);
+    }
     att_consider_predict(&v->consider,
                          ekf_add(ekf_add(ekf_sq(v->x[ATT_P]), ekf_sq(v->x[ATT_Q])), ekf_sq(v->x[ATT_R])),
                          s->angle_walk_rate, ekf_sq(mo.t.secth), dt);
@@ -115,7 +135,7 @@ ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scala
     }
     v->last_dt = dt;
     if (s->accel_lpf_tau > EKF_C(0)) {
-        accel_lp_turn(v, s, &mo, dt);
+        accel_lp_turn(v, s, &mo);
     }
     /* the composed rotation's angles are in range already; passing over the top shows as a
      * half turn of roll and heading (the Jacobian was taken at the new angles) */

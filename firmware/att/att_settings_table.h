@@ -152,8 +152,15 @@ extern "C" {
       "random walk of the offset (its instability)") \
     X(mag_derate, S, 30, 30, 1, 1e4, ANY, 1, "1", \
       "factor on the magnetometer innovations' variance in the offset's update") \
-    X(motion, U16, 2, 2, 0, 2, ANY, 1, "0/1/2", \
-      "learn the offset in motion: 0 no, 1 from the accelerometer, 2 and the magnetometer")
+    X(motion, U16, 1, 1, 0, 2, ANY, 1, "0/1/2", \
+      "learn the offset in motion: 0 no, 1 from the accelerometer, 2 and the magnetometer") \
+    X(vertical_tau, S, 10, 10, 0, 1e6, ANY, 1, "s", \
+      "time constant with which the offset's earth-vertical part decays when no magnetometer " \
+      "learns it (motion < 2): the accelerometer cannot tell it from noise; 0 = no decay") \
+    X(tmp_alpha, S, 1, 1, 0, 1e3, ANY, 1, "1", "tmp") \
+    X(hold_time, S, 2, 2, 0, 1e3, ANY, 1, "s", \
+      "no learning for this long after evidence the offset cannot explain: a gap in the samples, " \
+      "a clipped accelerometer, a saturated gyroscope, a bypassed gate")
 
 /* clang-format on */
 

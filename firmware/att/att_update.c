@@ -17,6 +17,9 @@ static void meas_trig(const att_vars_t *v, att_trig_t *t)
     t->secth = EKF_C(0);
 }
 
+/* 1 for a status that refuses the call (EKF_GATED and EKF_SKIPPED are not errors). */
+static int is_stage_error(ekf_status_t st) { return st != EKF_OK && st != EKF_GATED && st != EKF_SKIPPED; }
+
 /* 1 if an innovation would fail the gate of gate sigmas (a bypassed gate still judges the
  * innovations, so that the bypass lasts until they are consistent again). */
 static int fails_gate(const ekf_innov_t *info, ekf_scalar_t gate)
@@ -32,6 +35,8 @@ static ekf_scalar_t gate_for(att_vars_t *v, const att_settings_t *s, int sensor,
     const ekf_scalar_t timeout = s->gate_timeout;
     if (gate > EKF_C(0) && timeout > EKF_C(0) && v->gated_time[sensor] > timeout) {
         v->flags |= ATT_FLAG_GATE_BYPASS;
+        /* the innovations say the state is off: not the offset's doing */
+        att_bias_hold(&v->bias, s->bias.hold_time);
         return EKF_C(0);
     }
     return gate;
@@ -85,6 +90,7 @@ ekf_status_t att_stage_gyro_saturated(att_vars_t *v, const att_settings_t *s, co
     att_cov_add_rate_noise(&v->cov, g, extra);
     /* the angles' error is now the unmeasured rotation's, not the offset's */
     att_bias_restart(&v->bias);
+    att_bias_hold(&v->bias, s->bias.hold_time);
     /* the low-passed force is carried over the step with the body rates, which this sample
      * does not measure: start it again from the next accelerometer sample */
     v->accel_lp_valid = 0u;
@@ -139,11 +145,12 @@ ekf_status_t att_stage_gyro(att_vars_t *v, const att_settings_t *s, const ekf_sc
 
 /* ---- accelerometer ---- */
 
-/* A vector sample (accelerometer or magnetometer, body frame) is the mean over its interval
- * of length dt: for a body turning at the rate state it is the vector at the interval's
- * middle, half a step before the state's time. out = the same earth-fixed vector in the body
- * axes at the end of the interval, turned by the rest of the step, -w dt/2 (second order in
- * th = w dt / 2: v - th x v + th x (th x v) / 2); docs/derivation.md, "Sample timing". */
+/* A vector sample (accelerometer or magnetometer, body frame) is the mean over its own
+ * interval, the sample interval (dt, or after a gap the interval without gaps, dt_nom): for a
+ * body turning at the rate state it is the vector half an interval before the state's time.
+ * out = the same earth-fixed vector in the body axes at the end of the interval, turned by
+ * -w dt/2 (second order in th = w dt / 2: v - th x v + th x (th x v) / 2); docs/derivation.md,
+ * "Sample timing". */
 static void cross3(const ekf_scalar_t a[3], const ekf_scalar_t b[3], ekf_scalar_t out[3])
 {
     out[0] = ekf_sub(ekf_mul(a[1], b[2]), ekf_mul(a[2], b[1]));
@@ -153,7 +160,8 @@ static void cross3(const ekf_scalar_t a[3], const ekf_scalar_t b[3], ekf_scalar_
 
 static void to_interval_end(const att_vars_t *v, const ekf_scalar_t vec[3], ekf_scalar_t dt, ekf_scalar_t out[3])
 {
-    const ekf_scalar_t half = ekf_mul(EKF_C(0.5), dt);
+    const ekf_scalar_t own = (v->dt_nom > EKF_C(0)) ? ekf_min(dt, v->dt_nom) : dt;
+    const ekf_scalar_t half = ekf_mul(EKF_C(0.5), own);
     ekf_scalar_t th[3], c1[3], c2[3];
     int i;
     for (i = 0; i < 3; ++i) {
@@ -201,35 +209,25 @@ static void consider_accel(att_vars_t *v, const att_settings_t *s, const ekf_sca
                        ekf_div(tau, ekf_add(tau, dt)));
 }
 
-ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t accel[3], ekf_scalar_t dt)
+/* The vector the accelerometer stage fuses: at rest the sample itself (no linear
+ * acceleration to filter out), else the low-passed force when the low-pass is on (every
+ * sample enters it, fused or not), else the sample; each turned to the interval's end. The
+ * running linear-acceleration variance follows it. Returns its norm. */
+static ekf_scalar_t accel_vector(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t accel[3], ekf_scalar_t dt,
+                                 int rest, ekf_scalar_t a[3])
 {
-    ekf_scalar_t norm, a_norm, err, r_var, gate, phi0, theta0, var0[2];
-    ekf_scalar_t a[3], h[3], hj[6];
-    att_trig_t t;
-    ekf_status_t st;
-    ekf_innov_t info;
-    int i, gated = 0, bypass_failed = 0, consistent = 1;
-    const int rest = (v->flags & ATT_FLAG_AT_REST) != 0u && s->rest.accel_noise > EKF_C(0);
-
-    v->tilt_ok = 0u; /* until this update shows otherwise */
-    norm = att_norm3(accel);
-    err = ekf_abs(ekf_sub(norm, s->gravity));
-    v->diag.accel_norm_error = err;
-    v->flags &= ~(ATT_FLAG_ACCEL_DEWEIGHTED | ATT_FLAG_ACCEL_REJECTED | ATT_FLAG_ACCEL_GATED);
-    /* a: what is fused, the low-passed force when the low-pass is on (every sample enters
-     * it, fused or not), else the sample */
+    ekf_scalar_t a_norm;
+    int i;
+    to_interval_end(v, accel, dt, a);
     if (s->accel_lpf_tau > EKF_C(0)) {
-        ekf_scalar_t ac[3];
-        to_interval_end(v, accel, dt, ac);
-        accel_lp_blend(v, s, ac, dt);
-        for (i = 0; i < 3; ++i) {
-            a[i] = (rest) ? ac[i] : v->accel_lp[i];
+        accel_lp_blend(v, s, a, dt);
+        if (!rest) {
+            for (i = 0; i < 3; ++i) {
+                a[i] = v->accel_lp[i];
+            }
         }
-        a_norm = att_norm3(a);
-    } else {
-        to_interval_end(v, accel, dt, a);
-        a_norm = norm;
     }
+    a_norm = att_norm3(a);
     if (s->accel_adapt_tau > EKF_C(0)) {
         /* running mean over accel_adapt_tau of the squared norm error of a: how much linear
          * acceleration is left in it lately, whatever this one sample's norm happens to be */
@@ -237,24 +235,23 @@ ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_s
         const ekf_scalar_t e = ekf_sub(a_norm, s->gravity);
         v->accel_dev_var = ekf_mac(v->accel_dev_var, k, ekf_sub(ekf_sq(e), v->accel_dev_var));
     }
-    if (err > s->accel_reject || !(norm > EKF_C(0))) {
-        /* far from 1 g: the direction is dominated by linear acceleration */
-        v->flags |= ATT_FLAG_ACCEL_REJECTED;
-        ekf_count(&v->diag.accel_skipped);
-        return EKF_SKIPPED;
+    return a_norm;
+}
+
+/* Variance of each component of the fused unit vector: (accel_noise^2 + the recent
+ * linear-acceleration variance times accel_adapt_weight) / (g^2 dt), both densities; at
+ * rest rest.accel_noise^2 / (g^2 dt); optionally inflated by 1 + (err / accel_band)^2 for
+ * this sample (docs/derivation.md, "Linear acceleration"). Sets ATT_FLAG_ACCEL_DEWEIGHTED. */
+static ekf_scalar_t accel_variance(att_vars_t *v, const att_settings_t *s, ekf_scalar_t err, ekf_scalar_t dt, int rest)
+{
+    const ekf_scalar_t g2 = ekf_sq(s->gravity);
+    const ekf_scalar_t lin = ekf_mul(v->accel_dev_var, s->accel_adapt_weight);
+    ekf_scalar_t r_var = ekf_div(ekf_div(ekf_add(ekf_sq(s->accel_noise), lin), dt), g2);
+    if (lin > ekf_sq(s->accel_noise)) {
+        v->flags |= ATT_FLAG_ACCEL_DEWEIGHTED; /* the noise variance at least doubled */
     }
-    /* unit-vector measurement; variance (accel_noise^2 + the recent linear-acceleration
-     * variance times accel_adapt_weight) / (g^2 dt), both densities, optionally inflated by
-     * 1 + (err / accel_band)^2 for this sample (docs/derivation.md, "Linear acceleration") */
-    {
-        const ekf_scalar_t lin = ekf_mul(v->accel_dev_var, s->accel_adapt_weight);
-        r_var = ekf_div(ekf_div(ekf_add(ekf_sq(s->accel_noise), lin), dt), ekf_sq(s->gravity));
-        if (lin > ekf_sq(s->accel_noise)) {
-            v->flags |= ATT_FLAG_ACCEL_DEWEIGHTED; /* the noise variance at least doubled */
-        }
-        if (rest) {
-            r_var = ekf_div(ekf_div(ekf_sq(s->rest.accel_noise), dt), ekf_sq(s->gravity));
-        }
+    if (rest) {
+        r_var = ekf_div(ekf_div(ekf_sq(s->rest.accel_noise), dt), g2);
     }
     if (s->accel_band > EKF_C(0)) {
         const ekf_scalar_t k = ekf_div(err, s->accel_band);
@@ -263,26 +260,44 @@ ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_s
             v->flags |= ATT_FLAG_ACCEL_DEWEIGHTED;
         }
     }
-    gate = gate_for(v, s, ATT_SENSOR_ACCEL, s->accel_gate);
-    if (!(a_norm > EKF_C(0))) {
-        /* the shaking averaged to no force at all: no direction to fuse (the raw sample's
-         * zero norm was rejected above) */
-        v->flags |= ATT_FLAG_ACCEL_REJECTED;
-        ekf_count(&v->diag.accel_skipped);
-        return EKF_SKIPPED;
-    }
-    norm = a_norm;
+    return r_var;
+}
 
-    /* h and H at the prior; the three components are fused sequentially with innovations
-     * relinearised about the prior, which equals the batch update of the 3-vector
-     * (docs/derivation.md, "Sequential vector updates") */
+/* How much more than S the offset learned in motion must allow for in an accelerometer
+ * innovation: the low-passed force's linear-acceleration residual (variance N = v / g^2)
+ * is correlated over the low-pass delay T, so T / dt successive innovations share it and
+ * carry the evidence of one; counted as white noise of density 2 N T it adds 2 N T / dt to
+ * each innovation's variance (docs/derivation.md, "Gyroscope offset in motion"). */
+static ekf_scalar_t learn_excess(const att_vars_t *v, const att_settings_t *s, ekf_scalar_t dt, int rest)
+{
+    const ekf_scalar_t T = ekf_mul(ekf_mul(ekf_from_int((int32_t)s->accel_lpf_order), s->accel_lpf_tau), s->bias.tmp_alpha);
+    if (rest || !(T > EKF_C(0))) {
+        return EKF_C(0);
+    }
+    return ekf_div(ekf_mul(ekf_mul(EKF_C(2), ekf_div(v->accel_dev_var, ekf_sq(s->gravity))), T), dt);
+}
+
+/* The three components of the unit vector a / norm, fused sequentially with innovations
+ * relinearised about the prior (h and H evaluated once there), which equals the batch
+ * update of the 3-vector (docs/derivation.md, "Sequential vector updates"); each fused
+ * component also teaches the offset in motion. Returns the first error, else EKF_GATED if a
+ * component gated, else EKF_OK; *bypass_failed and *consistent as in att_stage_accel. */
+static ekf_status_t accel_fuse(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t a[3], ekf_scalar_t norm,
+                               ekf_scalar_t r_var, ekf_scalar_t gate, ekf_scalar_t excess, int *bypass_failed,
+                               int *consistent)
+{
+    /* beyond the gimbal limit the kinematics are clamped: the innovations then carry the
+     * clamp's error, not the offset's */
+    const int learn = s->bias.motion >= 1u && (v->flags & ATT_FLAG_GIMBAL_LOCK) == 0u;
+    const ekf_scalar_t phi0 = v->x[ATT_PHI], theta0 = v->x[ATT_THETA];
+    ekf_scalar_t h[3], hj[6];
+    att_trig_t t;
+    ekf_innov_t info;
+    ekf_status_t st, out = EKF_OK;
+    int i;
     meas_trig(v, &t);
     att_gen_accel_h(&t, h);
     att_gen_accel_jacobian(&t, hj);
-    phi0 = v->x[ATT_PHI];
-    theta0 = v->x[ATT_THETA];
-    var0[0] = att_cov_var(&v->cov, ATT_PHI);
-    var0[1] = att_cov_var(&v->cov, ATT_THETA);
     for (i = 0; i < 3; ++i) {
         const ekf_scalar_t h3[3] = {hj[2 * i], hj[2 * i + 1], EKF_C(0)};
         ekf_scalar_t pht[3];
@@ -300,35 +315,63 @@ ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_s
         }
         st = att_cov_update_angles(&v->cov, v->x, h3, nu, r_var, gate, s->var_floor, &info);
         if (st == EKF_OK) {
-            /* beyond the gimbal limit the kinematics are clamped: the innovations then carry
-             * the clamp's error, not the offset's */
-            (void)att_bias_update(&v->bias, s->bias.motion >= 1u && (v->flags & ATT_FLAG_GIMBAL_LOCK) == 0u, h3, pht,
-                                  nu, info.variance, EKF_C(1), &v->x[ATT_PHI]);
+            (void)att_bias_update(&v->bias, learn, h3, pht, nu, info.variance,
+                                  ekf_add(EKF_C(1), ekf_div(excess, info.variance)), &v->x[ATT_PHI]);
         }
         v->diag.accel_ratio[i] = info.test_ratio;
-        bypass_failed |= (st == EKF_OK) && fails_gate(&info, s->accel_gate);
-        consistent = consistent && (st == EKF_OK) && !fails_gate(&info, EKF_C(3));
+        *bypass_failed |= (st == EKF_OK) && fails_gate(&info, s->accel_gate);
+        *consistent = *consistent && (st == EKF_OK) && !fails_gate(&info, EKF_C(3));
         if (st == EKF_GATED) {
-            gated = 1;
+            out = EKF_GATED;
             ekf_count(&v->diag.accel_gated);
         } else if (st != EKF_OK) {
-            return st; /* EKF_ERR_NUMERIC: the call discards its working copy */
+            return st; /* EKF_ERR_NUMERIC: the call puts its saved copy back */
         } else {
             ekf_count(&v->diag.accel_fused);
         }
+    }
+    return out;
+}
+
+ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t accel[3], ekf_scalar_t dt)
+{
+    const int rest = (v->flags & ATT_FLAG_AT_REST) != 0u && s->rest.accel_noise > EKF_C(0);
+    ekf_scalar_t norm, a_norm, err, r_var, var0[2], a[3];
+    ekf_status_t st;
+    int bypass_failed = 0, consistent = 1;
+
+    v->tilt_ok = 0u; /* until this update shows otherwise */
+    norm = att_norm3(accel);
+    err = ekf_abs(ekf_sub(norm, s->gravity));
+    v->diag.accel_norm_error = err;
+    v->flags &= ~(ATT_FLAG_ACCEL_DEWEIGHTED | ATT_FLAG_ACCEL_REJECTED | ATT_FLAG_ACCEL_GATED);
+    a_norm = accel_vector(v, s, accel, dt, rest, a);
+    /* far from 1 g (the direction is dominated by linear acceleration), or no force at all
+     * (free fall, or shaking that averaged to none): no direction to fuse */
+    if (err > s->accel_reject || !(norm > EKF_C(0)) || !(a_norm > EKF_C(0))) {
+        v->flags |= ATT_FLAG_ACCEL_REJECTED;
+        ekf_count(&v->diag.accel_skipped);
+        return EKF_SKIPPED;
+    }
+    r_var = accel_variance(v, s, err, dt, rest);
+    var0[0] = att_cov_var(&v->cov, ATT_PHI);
+    var0[1] = att_cov_var(&v->cov, ATT_THETA);
+    st = accel_fuse(v, s, a, a_norm, r_var, gate_for(v, s, ATT_SENSOR_ACCEL, s->accel_gate),
+                    learn_excess(v, s, dt, rest), &bypass_failed, &consistent);
+    if (is_stage_error(st)) {
+        return st;
     }
     if (att_normalise(v)) {
         ekf_count(&v->diag.remaps);
     }
     consider_accel(v, s, var0, dt);
     att_update_gimbal_flag(v, s);
-    gate_result(v, s, ATT_SENSOR_ACCEL, gated || bypass_failed);
+    gate_result(v, s, ATT_SENSOR_ACCEL, st == EKF_GATED || bypass_failed);
     v->tilt_ok = (uint8_t)(consistent && (v->flags & ATT_FLAG_ACCEL_DEWEIGHTED) == 0u);
-    if (gated) {
+    if (st == EKF_GATED) {
         v->flags |= ATT_FLAG_ACCEL_GATED;
-        return EKF_GATED;
     }
-    return EKF_OK;
+    return st;
 }
 
 /* ---- magnetometer ---- */

@@ -79,8 +79,8 @@ def dbc_path() -> Path:
     packaged = Path(__file__).resolve().parent / "data" / "attekf.dbc"
     p = Path(env) if env else packaged if packaged.is_file() else REPO_ROOT / DBC_RELPATH
     if not p.is_file():
-        raise ProtocolError(f"{p}: CAN database not found (set ATTEKF_DBC to firmware/app/dbc/attekf.dbc "
-                            "of the attekf source tree)")
+        raise ProtocolError(f"{p}: CAN database not found (the package's attekf/data/attekf.dbc is "
+                            "missing: reinstall attekf, or set ATTEKF_DBC to a copy of the database)")
     return p
 
 
