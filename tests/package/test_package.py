@@ -263,7 +263,7 @@ def test_installed_package_uses_its_own_modules_and_dbc(with_extras):
         assert site in Path(p).resolve().parents, f"{p} is not inside the virtual environment"
     # the overrides still win
     env = dict(inst.env, ATTEKF_LIB=str(REPO / "build" / "host" / "host_tools" / "native"),
-               ATTEKF_DBC=str(REPO / "hal" / "can" / "attekf.dbc"))
+               ATTEKF_DBC=str(REPO / "firmware" / "app" / "dbc" / "attekf.dbc"))
     out = inst.run(inst.python, "-c",
                    "import attekf.native as n, attekf.canproto as c; print(n.load('double').path); "
                    "print(c.dbc_path())", env=env).stdout.split()
