@@ -95,8 +95,6 @@ static ekf_status_t check_dt(const att_settings_t *s, ekf_scalar_t dt)
     return EKF_OK;
 }
 
-static int is_error(ekf_status_t st) { return st != EKF_OK && st != EKF_GATED && st != EKF_SKIPPED; }
-
 /* A refused call: its one error counter, nothing else. */
 static ekf_status_t refuse(att_ekf_t *f, ekf_status_t st)
 {
@@ -251,8 +249,8 @@ ekf_status_t att_predict(att_ekf_t *f, ekf_scalar_t dt)
         return refuse(f, st);
     }
     att_vars_copy(&saved, &f->vars);
-    st = att_stage_predict(&f->vars, &f->settings, dt);
-    if (is_error(st)) {
+    st = att_stage_predict(&f->vars, &f->settings, dt, NULL);
+    if (ekf_status_is_error(st)) {
         return restore(f, &saved, st);
     }
     return (commit(f, &saved) == EKF_OK) ? st : EKF_ERR_NUMERIC;
@@ -279,7 +277,7 @@ static ekf_status_t public_update(att_ekf_t *f, const ekf_scalar_t vec[3], ekf_s
     }
     att_vars_copy(&saved, &f->vars);
     st = stage(&f->vars, &f->settings, vec, dt);
-    if (is_error(st)) {
+    if (ekf_status_is_error(st)) {
         return restore(f, &saved, st);
     }
     return (commit(f, &saved) == EKF_OK) ? st : EKF_ERR_NUMERIC;
@@ -313,10 +311,10 @@ static void report_all(att_step_report_t *rep, ekf_status_t st)
 /* The first error of the report (order predict, gyro, accel, mag), EKF_OK if none. */
 static ekf_status_t first_error(const att_step_report_t *rep)
 {
-    return is_error(rep->predict) ? rep->predict
-           : is_error(rep->gyro)  ? rep->gyro
-           : is_error(rep->accel) ? rep->accel
-           : is_error(rep->mag)   ? rep->mag
+    return ekf_status_is_error(rep->predict) ? rep->predict
+           : ekf_status_is_error(rep->gyro)  ? rep->gyro
+           : ekf_status_is_error(rep->accel) ? rep->accel
+           : ekf_status_is_error(rep->mag)   ? rep->mag
                                   : EKF_OK;
 }
 
@@ -348,16 +346,16 @@ static ekf_status_t validate_sample(const att_ekf_t *f, const att_sample_t *sm, 
         return EKF_OK;
     }
     /* only the inputs at fault keep their error */
-    if (!is_error(rep->predict)) {
+    if (!ekf_status_is_error(rep->predict)) {
         rep->predict = EKF_SKIPPED;
     }
-    if (!is_error(rep->gyro)) {
+    if (!ekf_status_is_error(rep->gyro)) {
         rep->gyro = EKF_SKIPPED;
     }
-    if (!is_error(rep->accel)) {
+    if (!ekf_status_is_error(rep->accel)) {
         rep->accel = EKF_SKIPPED;
     }
-    if (!is_error(rep->mag)) {
+    if (!ekf_status_is_error(rep->mag)) {
         rep->mag = EKF_SKIPPED;
     }
     return st;
@@ -385,77 +383,95 @@ static ekf_status_t gyro_stage(att_vars_t *w, const att_settings_t *s, const att
     return EKF_OK;
 }
 
-ekf_status_t att_step(att_ekf_t *f, const att_sample_t *sample, att_step_report_t *report)
+/* Rest detection sees every complete sample, from the first one on, so that the initial rest
+ * already yields the gyroscope offset; while aligning, only samples with a valid time step
+ * (the first one after a start has none). */
+static void rest_stage(att_vars_t *w, const att_settings_t *s, const att_sample_t *sm)
+{
+    w->flags &= ~ATT_FLAG_AT_REST;
+    if ((sm->valid & (ATT_HAS_GYRO | ATT_HAS_ACCEL | ATT_GYRO_SATURATED)) == (ATT_HAS_GYRO | ATT_HAS_ACCEL) &&
+        check_dt(s, sm->dt) == EKF_OK && att_rest_update(&w->rest, &s->rest, sm->gyro, sm->accel, sm->dt)) {
+        w->flags |= ATT_FLAG_AT_REST;
+        /* the rest offset averaged this sample with weight dt / bias_time (att_rest.c): the
+         * offset learned in motion hands over to it at that rate */
+        att_bias_rest(&w->bias, ekf_div(sm->dt, w->rest.bias_time), ekf_div(ekf_sq(s->gyro_noise), sm->dt));
+    }
+}
+
+/* The stages of an aligned filter's step, in order, each status in its slot of rep; *last
+ * the slot of the last stage that ran. The gyro sample describes the rotation over the
+ * interval ending now: it is fused before the propagation, so the angles integrate it
+ * (docs/derivation.md, "Step order"). Returns the slot of the first error, or NULL. */
+static ekf_status_t *aligned_stages(att_vars_t *w, const att_settings_t *s, const att_sample_t *sm,
+                                    att_step_report_t *rep, ekf_status_t **last, att_trace_t *trace)
+{
+    rep->gyro = gyro_stage(w, s, sm);
+    if (ekf_status_is_error(rep->gyro)) {
+        return &rep->gyro;
+    }
+    rep->predict = att_stage_predict(w, s, sm->dt, trace);
+    if (ekf_status_is_error(rep->predict)) {
+        return &rep->predict;
+    }
+    ekf_count(&w->diag.steps);
+    if ((sm->valid & ATT_HAS_ACCEL) != 0u) {
+        *last = &rep->accel;
+        rep->accel = att_stage_accel(w, s, sm->accel, sm->dt);
+        if (ekf_status_is_error(rep->accel)) {
+            return &rep->accel;
+        }
+    }
+    if ((sm->valid & ATT_HAS_MAG) != 0u) {
+        *last = &rep->mag;
+        rep->mag = att_stage_mag(w, s, sm->mag, sm->dt);
+        if (ekf_status_is_error(rep->mag)) {
+            return &rep->mag;
+        }
+    }
+    return NULL;
+}
+
+ekf_status_t att_step_traced(att_ekf_t *f, const att_sample_t *sample, att_step_report_t *report, att_trace_t *trace)
 {
     att_step_report_t local = {EKF_OK, EKF_OK, EKF_OK, EKF_OK}; /* set below; initialised for the analysers */
     att_step_report_t *rep = (report != NULL) ? report : &local;
-    const att_settings_t *s;
     ekf_status_t *last = &rep->predict; /* the slot of the last stage that ran */
-    att_vars_t saved, *w;
+    ekf_status_t *failed = NULL;
+    att_vars_t saved;
     ekf_status_t st;
 
+    if (trace != NULL) {
+        trace->predicted = 0;
+    }
     if (f == NULL || sample == NULL) {
         report_all(rep, EKF_ERR_NULL);
         return (f == NULL) ? EKF_ERR_NULL : refuse(f, EKF_ERR_NULL);
     }
-    s = &f->settings;
     st = validate_sample(f, sample, rep);
     if (st != EKF_OK) {
         return refuse(f, st);
     }
     att_vars_copy(&saved, &f->vars);
-    w = &f->vars; /* the stages run in place */
-    /* rest detection sees every complete sample, from the first one on, so that the
-     * initial rest already yields the gyroscope offset; while aligning, only samples with
-     * a valid time step (the first one after a start has none) */
-    w->flags &= ~ATT_FLAG_AT_REST;
-    if ((sample->valid & (ATT_HAS_GYRO | ATT_HAS_ACCEL | ATT_GYRO_SATURATED)) == (ATT_HAS_GYRO | ATT_HAS_ACCEL) &&
-        check_dt(s, sample->dt) == EKF_OK &&
-        att_rest_update(&w->rest, &s->rest, sample->gyro, sample->accel, sample->dt)) {
-        w->flags |= ATT_FLAG_AT_REST;
-        /* the rest offset averaged this sample with weight dt / bias_time (att_rest.c): the
-         * offset learned in motion hands over to it at that rate */
-        att_bias_rest(&w->bias, ekf_div(sample->dt, w->rest.bias_time), ekf_div(ekf_sq(s->gyro_noise), sample->dt));
-    }
-    if ((w->flags & ATT_FLAG_ALIGNED) == 0u) {
+    rest_stage(&f->vars, &f->settings, sample); /* the stages run in place */
+    if ((f->vars.flags & ATT_FLAG_ALIGNED) == 0u) {
         /* averaging, then the alignment and the gyro of its last sample */
         last = &rep->accel;
-        rep->accel = att_stage_align_sample(w, s, sample);
-        if ((w->flags & ATT_FLAG_ALIGNED) != 0u) {
+        rep->accel = att_stage_align_sample(&f->vars, &f->settings, sample);
+        if ((f->vars.flags & ATT_FLAG_ALIGNED) != 0u) {
             last = &rep->gyro;
-            rep->gyro = gyro_stage(w, s, sample);
-            if (is_error(rep->gyro)) {
-                return discard(f, &saved, rep, &rep->gyro);
-            }
+            rep->gyro = gyro_stage(&f->vars, &f->settings, sample);
+            failed = ekf_status_is_error(rep->gyro) ? &rep->gyro : NULL;
         }
     } else {
-        /* The gyro sample describes the rotation over the interval ending now: fuse it
-         * before propagating, so the angles integrate it (docs/derivation.md, "Step order"). */
-        rep->gyro = gyro_stage(w, s, sample);
-        if (is_error(rep->gyro)) {
-            return discard(f, &saved, rep, &rep->gyro);
-        }
-        rep->predict = att_stage_predict(w, s, sample->dt);
-        if (is_error(rep->predict)) {
-            return discard(f, &saved, rep, &rep->predict);
-        }
-        ekf_count(&w->diag.steps);
-        if ((sample->valid & ATT_HAS_ACCEL) != 0u) {
-            last = &rep->accel;
-            rep->accel = att_stage_accel(w, s, sample->accel, sample->dt);
-            if (is_error(rep->accel)) {
-                return discard(f, &saved, rep, &rep->accel);
-            }
-        }
-        if ((sample->valid & ATT_HAS_MAG) != 0u) {
-            last = &rep->mag;
-            rep->mag = att_stage_mag(w, s, sample->mag, sample->dt);
-            if (is_error(rep->mag)) {
-                return discard(f, &saved, rep, &rep->mag);
-            }
-        }
+        failed = aligned_stages(&f->vars, &f->settings, sample, rep, &last, trace);
     }
-    if (commit(f, &saved) != EKF_OK) {
+    if (failed != NULL || commit(f, &saved) != EKF_OK) {
+        if (trace != NULL) {
+            trace->predicted = 0;
+        }
+        if (failed != NULL) {
+            return discard(f, &saved, rep, failed);
+        }
         report_all(rep, EKF_SKIPPED);
         *last = EKF_ERR_NUMERIC;
         return EKF_ERR_NUMERIC;
@@ -465,4 +481,9 @@ ekf_status_t att_step(att_ekf_t *f, const att_sample_t *sample, att_step_report_
            : (rep->gyro != EKF_OK)  ? rep->gyro
            : (rep->accel != EKF_OK) ? rep->accel
                                     : rep->mag;
+}
+
+ekf_status_t att_step(att_ekf_t *f, const att_sample_t *sample, att_step_report_t *report)
+{
+    return att_step_traced(f, sample, report, NULL);
 }

@@ -93,7 +93,7 @@ typedef struct {
     uint32_t heading_resets;  /* heading set to the magnetic heading (mag_reset_time) */
     uint32_t gyro_saturated;  /* samples with ATT_GYRO_SATURATED (rate variances raised) */
     ekf_scalar_t gyro_ratio[3];
-    ekf_scalar_t accel_ratio[3];
+    ekf_scalar_t accel_ratio[2]; /* the tangent-plane components: about the roll and pitch axes */
     ekf_scalar_t mag_ratio;
     ekf_scalar_t accel_norm_error; /* last | |a| - g |, m/s^2 */
     ekf_scalar_t mag_norm_error;   /* last |m| / ref - 1 */
@@ -108,15 +108,23 @@ typedef struct {
     ekf_scalar_t mag_ref_norm;  /* in use (set or learned) */
     ekf_scalar_t mag_ref_dip;
     ekf_scalar_t mag_tan2_dip;  /* tan^2 of mag_ref_dip (set with the reference) */
+    ekf_scalar_t mag_avg_norm;  /* running means of the field's norm (mag units) and dip (rad) */
+    ekf_scalar_t mag_avg_dip;
+    ekf_scalar_t mag_new_clock; /* s: the reference's age while it settles, then how long a
+                                   field off it has stayed consistent with itself */
     ekf_scalar_t align_acc[3];  /* sums during alignment */
     ekf_scalar_t align_mag[3];
     uint16_t align_count;
     uint16_t align_mag_count;
     ekf_scalar_t gated_time[3]; /* s of continuous gating: gyro, accel, mag */
     ekf_scalar_t accel_dev_var; /* running mean of ( |a| - g )^2, (m/s^2)^2 */
+    ekf_scalar_t accel_hf_var;  /* running mean of |sample - low-pass|^2, (m/s^2)^2: the
+                                   accelerometer's short-term motion (steps, impacts, shaking) */
     ekf_scalar_t accel_lp[3];   /* low-passed specific force, body frame, m/s^2 (last stage) */
     ekf_scalar_t accel_lp1[3];  /* its first stage when accel_lpf_order is 2, m/s^2 */
     uint8_t accel_lp_valid;     /* accel_lp holds a sample */
+    uint8_t mag_settled;        /* the learned reference has settled (track_reference) */
+    uint8_t rate_unmeasured;    /* the last gyro sample was saturated: the rate state is a guess */
     uint8_t tilt_ok;            /* last accelerometer update: fused, no linear acceleration,
                                    every innovation within 3 sigma (heading resets need it) */
     ekf_scalar_t last_dt;       /* s, of the last prediction (time base of the running means) */
@@ -166,6 +174,21 @@ typedef struct {
     ekf_status_t accel;
     ekf_status_t mag;
 } att_step_report_t;
+
+/* What the prediction of one att_step did, for a smoother that runs backwards over a
+ * recording (the host tools' Rauch-Tung-Striebel pass, docs/derivation.md, "Smoother"):
+ * the state and covariance before the prediction (after the step's gyroscope update) and
+ * after it (its process noise, gaps and caps included), and the transition Jacobian F of the
+ * mean's map between them (row-major). predicted is 0 for a step that ran no prediction
+ * (aligning, or refused). */
+typedef struct {
+    int predicted;
+    ekf_scalar_t x_pre[ATT_N];
+    ekf_scalar_t P_pre[ATT_N * ATT_N];
+    ekf_scalar_t F[ATT_N * ATT_N];
+    ekf_scalar_t x_pred[ATT_N];
+    ekf_scalar_t P_pred[ATT_N * ATT_N];
+} att_trace_t;
 
 /* Linked as att_init_for_EKF_SCALAR_<type>: see EKF_SCALAR_LINK_NAME in ekf_config.h. */
 #define att_init EKF_SCALAR_LINK_NAME(att_init)
@@ -233,6 +256,9 @@ ekf_status_t att_align(att_ekf_t *f, const ekf_scalar_t accel[3], const ekf_scal
  * alignment samples have no usable gravity direction, the averaging restarts (EKF_SKIPPED
  * for accel, diag.accel_skipped). */
 ekf_status_t att_step(att_ekf_t *f, const att_sample_t *sample, att_step_report_t *report);
+
+/* att_step, and what its prediction did in *trace (att_trace_t; may be NULL). */
+ekf_status_t att_step_traced(att_ekf_t *f, const att_sample_t *sample, att_step_report_t *report, att_trace_t *trace);
 
 /* The stages, one call each (require an aligned filter; EKF_ERR_NOT_INITIALISED
  * otherwise), under the same contract. */

@@ -59,6 +59,11 @@ ekf_status_t att_stage_align(att_vars_t *v, const att_settings_t *s, const ekf_s
     att_bias_restart(&v->bias);
     att_consider_reset(&v->consider);
 
+    /* a learned reference settles afresh (att_update.c, track_reference) */
+    v->mag_avg_norm = EKF_C(0);
+    v->mag_avg_dip = EKF_C(0);
+    v->mag_new_clock = EKF_C(0);
+    v->mag_settled = 0u;
     if (s->mag_ref_norm > EKF_C(0)) {
         att_set_mag_reference(v, s->mag_ref_norm, s->mag_ref_dip);
     } else if (use_mag) {

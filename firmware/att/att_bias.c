@@ -57,7 +57,7 @@ void att_bias_restart(att_bias_t *bf)
 #define D1(a, j) ((a) * 6 + (j))
 
 void att_bias_predict(att_bias_t *bf, const att_bias_settings_t *s, const ekf_scalar_t d1[ATT_GEN_F1_NNZ],
-                      const ekf_scalar_t up[3], ekf_scalar_t dt)
+                      ekf_scalar_t dt)
 {
     /* The angles advance with the body rates w, which contain the residual offset one for
      * one (the gyro update makes them follow the gyro): d angles+ / d b = F_aa V + F_aw, the
@@ -83,15 +83,6 @@ void att_bias_predict(att_bias_t *bf, const att_bias_settings_t *s, const ekf_sc
         bf->Pb[j] = ekf_add(bf->Pb[j], q);
     }
     bf->hold = ekf_max(ekf_sub(bf->hold, dt), EKF_C(0));
-    if (s->motion < 2u && s->vertical_tau > EKF_C(0)) {
-        /* the accelerometer sees the offset's vertical part only through the body's turns,
-         * weakly, and what it learns there turns the heading: let it decay */
-        const ekf_scalar_t k = ekf_div(dt, ekf_add(s->vertical_tau, dt));
-        const ekf_scalar_t bv = ekf_mul(k, ekf_mac(ekf_mac(ekf_mul(bf->b[0], up[0]), bf->b[1], up[1]), bf->b[2], up[2]));
-        for (j = 0; j < 3; ++j) {
-            bf->b[j] = ekf_sub(bf->b[j], ekf_mul(bv, up[j]));
-        }
-    }
 }
 
 int att_bias_update(att_bias_t *bf, int learn, const ekf_scalar_t h[3], const ekf_scalar_t pht[3], ekf_scalar_t nu,
@@ -144,7 +135,11 @@ int att_bias_update(att_bias_t *bf, int learn, const ekf_scalar_t h[3], const ek
     d0 = ekf_mul(ekf_mul(p0, e), ATT_BIAS_UNIT);
     d1 = ekf_mul(ekf_mul(p1, e), ATT_BIAS_UNIT);
     d2 = ekf_mul(ekf_mul(p2, e), ATT_BIAS_UNIT);
-    /* the angles' error was V b: take the part now known out of them */
+    /* the angles' error was V b: take the part now known out of them, the heading only where
+     * the measurement is of the heading (the magnetometer): from the accelerometer the
+     * heading's share would rest on V's heading row alone, and a wrong offset would turn the
+     * heading faster than the offset itself does (docs/derivation.md, "Gyroscope offset in
+     * motion") */
     for (i = 0; i < ((h[2] != EKF_C(0)) ? 3 : 2); ++i) {
         const ekf_scalar_t *const row = &V[3 * i];
         x_ang[i] = ekf_sub(x_ang[i], ekf_mac(ekf_mac(ekf_mul(row[0], d0), row[1], d1), row[2], d2));

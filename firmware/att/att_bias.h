@@ -61,11 +61,9 @@ void att_bias_restart(att_bias_t *bf);
 /* One prediction of length dt (s) with D1 = F1 - I, the angle rows of the transition's
  * first factor (att_gen_transition_factors, d1 in the order of att_gen_f1_pattern): V
  * follows the angles' dependence on the body rates, which carry the offset, and on the
- * angles; Pb grows by walk^2 dt; the hold runs down; unless the magnetometer learns it
- * (motion 2), the offset's part along up[3] (the earth's vertical in body axes, unit) decays
- * with vertical_tau. */
+ * angles; Pb grows by walk^2 dt; the hold runs down. */
 void att_bias_predict(att_bias_t *bf, const att_bias_settings_t *s, const ekf_scalar_t d1[ATT_GEN_F1_NNZ],
-                      const ekf_scalar_t up[3], ekf_scalar_t dt);
+                      ekf_scalar_t dt);
 
 /* No learning for the next t seconds (evidence the offset cannot explain). */
 void att_bias_hold(att_bias_t *bf, ekf_scalar_t t);

@@ -371,16 +371,26 @@ ekf_status_t att_cov_update_angles(att_cov_t *c, ekf_scalar_t x[ATT_N], const ek
     if (st != EKF_OK) {
         return st;
     }
+    /* P H^T: the angle columns whose entry of h is not zero (a zero adds nothing: the
+     * accelerometer's rows have one or two) */
     for (i = 0; i < ATT_N; ++i) {
-        /* P H^T: the angle columns; a zero entry of h adds nothing (and costs nothing in
-         * the accelerometer's roll-and-pitch rows) */
-        b[i] = ekf_mac(ekf_mul(c->p[r3[i]], h[0]), c->p[r4[i]], h[1]);
-        if (h[2] != EKF_C(0)) {
+        b[i] = ekf_mul(c->p[r3[i]], h[0]);
+    }
+    if (h[1] != EKF_C(0)) {
+        for (i = 0; i < ATT_N; ++i) {
+            b[i] = ekf_mac(b[i], c->p[r4[i]], h[1]);
+        }
+    }
+    if (h[2] != EKF_C(0)) {
+        for (i = 0; i < ATT_N; ++i) {
             b[i] = ekf_mac(b[i], c->p[r5[i]], h[2]);
         }
     }
     {
-        ekf_scalar_t hb = ekf_mac(ekf_mul(h[0], b[ATT_PHI]), h[1], b[ATT_THETA]);
+        ekf_scalar_t hb = ekf_mul(h[0], b[ATT_PHI]);
+        if (h[1] != EKF_C(0)) {
+            hb = ekf_mac(hb, h[1], b[ATT_THETA]);
+        }
         if (h[2] != EKF_C(0)) {
             hb = ekf_mac(hb, h[2], b[ATT_PSI]);
         }

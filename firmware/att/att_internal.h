@@ -75,8 +75,9 @@ int att_align_has_gravity(const att_settings_t *s, const ekf_scalar_t accel[3]);
  * runs after align_samples of them: EKF_OK, or EKF_SKIPPED if the average has no usable
  * gravity direction (the averaging restarts, diag.accel_skipped). */
 ekf_status_t att_stage_align_sample(att_vars_t *v, const att_settings_t *s, const att_sample_t *sm);
-/* att_predict.c: dt in (0, dt_max], aligned filter. */
-ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scalar_t dt);
+/* att_predict.c: dt in (0, dt_max], aligned filter; trace (may be NULL) receives what the
+ * prediction did (att_trace_t). */
+ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scalar_t dt, att_trace_t *trace);
 /* att_update.c: aligned filter, the vector finite and within its range. */
 /* dt (s, > 0): the interval the sample covers; the noise densities give its variance. */
 ekf_status_t att_stage_gyro(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t gyro[3], ekf_scalar_t dt);

@@ -91,7 +91,35 @@ static void gap_noise(att_vars_t *v, const att_settings_t *s, const att_motion_t
     }
 }
 
-ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scalar_t dt)
+/* F = F2 F1 (row-major), for the trace. */
+static void full_jacobian(const ekf_scalar_t d1[ATT_GEN_F1_NNZ], const ekf_scalar_t d2[ATT_GEN_F2_NNZ],
+                          ekf_scalar_t F[ATT_N * ATT_N])
+{
+    ekf_scalar_t F1[ATT_N * ATT_N], F2[ATT_N * ATT_N];
+    int i, j, k;
+    for (i = 0; i < ATT_N * ATT_N; ++i) {
+        F1[i] = F2[i] = (i % (ATT_N + 1) == 0) ? EKF_C(1) : EKF_C(0);
+    }
+    for (k = 0; k < ATT_GEN_F1_NNZ; ++k) {
+        const int at = att_gen_f1_pattern[k].row * ATT_N + att_gen_f1_pattern[k].col;
+        F1[at] = ekf_add(F1[at], d1[k]);
+    }
+    for (k = 0; k < ATT_GEN_F2_NNZ; ++k) {
+        const int at = att_gen_f2_pattern[k].row * ATT_N + att_gen_f2_pattern[k].col;
+        F2[at] = ekf_add(F2[at], d2[k]);
+    }
+    for (i = 0; i < ATT_N; ++i) {
+        for (j = 0; j < ATT_N; ++j) {
+            ekf_scalar_t a = EKF_C(0);
+            for (k = 0; k < ATT_N; ++k) {
+                a = ekf_mac(a, F2[i * ATT_N + k], F1[k * ATT_N + j]);
+            }
+            F[i * ATT_N + j] = a;
+        }
+    }
+}
+
+ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scalar_t dt, att_trace_t *trace)
 {
     ekf_scalar_t xn[ATT_N];
     ekf_scalar_t d1[ATT_GEN_F1_NNZ], d2[ATT_GEN_F2_NNZ];
@@ -105,6 +133,13 @@ ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scala
     }
     /* F = F2 F1 (docs/derivation.md, "State Jacobian") */
     att_gen_transition_factors(&mo.t0, &mo.t, v->x, mo.rot, mo.jd, d1, d2);
+    if (trace != NULL) {
+        for (i = 0; i < ATT_N; ++i) {
+            trace->x_pre[i] = v->x[i];
+        }
+        att_cov_to_full(&v->cov, trace->P_pre);
+        full_jacobian(d1, d2, trace->F);
+    }
     /* F P F^T + Q, Q = G diag(rate_walk^2 dt) G^T (with the propagation; refused if the
      * Jacobian is not finite) + angle random walk + the discrete kinematics' own error:
      * independent, euler_rate_rel of the variance of each angle's increment and of each
@@ -121,11 +156,7 @@ ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scala
     }
     att_cov_scale_diag(&v->cov, ATT_PHID, 3, s->euler_rate_rel);
     gap_noise(v, s, &mo, dt);
-    {
-        /* the earth's vertical in the new body axes */
-        const ekf_scalar_t up[3] = {ekf_neg(mo.t.sth), ekf_mul(mo.t.sphi, mo.t.cth), ekf_mul(mo.t.cphi, mo.t.cth)};
-        att_bias_predict(&v->bias, &s->bias, d1, up, dt);
-    }
+    att_bias_predict(&v->bias, &s->bias, d1, dt);
     att_consider_predict(&v->consider,
                          ekf_add(ekf_add(ekf_sq(v->x[ATT_P]), ekf_sq(v->x[ATT_Q])), ekf_sq(v->x[ATT_R])),
                          s->angle_walk_rate, ekf_sq(mo.t.secth), dt);
@@ -161,6 +192,13 @@ ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scala
         if (v->gated_time[i] > EKF_C(0)) {
             v->gated_time[i] = ekf_add(v->gated_time[i], dt);
         }
+    }
+    if (trace != NULL) {
+        for (i = 0; i < ATT_N; ++i) {
+            trace->x_pred[i] = v->x[i];
+        }
+        att_cov_to_full(&v->cov, trace->P_pred);
+        trace->predicted = 1;
     }
     return EKF_OK;
 }

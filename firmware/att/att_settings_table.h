@@ -86,7 +86,7 @@ extern "C" {
     X(accel_ref_sigma, S, 0.005, 0.005, 0, 1.5707963267948966, ANY, 1, "rad", \
       "gravity-direction error that averaging cannot remove; reported covariance only") \
     /* magnetometer */ \
-    X(mag_heading_noise, S, 0.02958, 0.02958, 1e-9, 1e3, POS2, 1, "rad*sqrt(s)", \
+    X(mag_heading_noise, S, 0.015, 0.015, 1e-9, 1e3, POS2, 1, "rad*sqrt(s)", \
       "magnetic heading noise density: a sample of interval dt has variance " \
       "mag_heading_noise^2 / dt") \
     X(mag_gate, S, 3, 3, 0, 1e6, FIN2, 1, "sigma", "heading innovation gate; 0 = off") \
@@ -94,6 +94,15 @@ extern "C" {
       "allowed | |m| / reference - 1 | before the field counts as disturbed") \
     X(mag_dip_tol, S, 0.17, 0.17, 1e-6, 3.141592653589793, ANY, 1, "rad", \
       "allowed |dip - reference dip| before the field counts as disturbed") \
+    X(mag_norm_band, S, 0.08, 0.08, 0, 1e3, ANY, 1, "1", \
+      "relative field-norm error at which a sample's heading variance doubles (with " \
+      "mag_dip_band); 0 = off") \
+    X(mag_dip_band, S, 0.14, 0.14, 0, 3.141592653589793, ANY, 1, "rad", \
+      "dip error at which a sample's heading variance doubles (with mag_norm_band); 0 = off") \
+    X(mag_new_time, S, 20, 20, 0, 1e6, ANY, 1, "s", \
+      "a learned reference (mag_ref_norm 0) settles over the first quarter of this after it " \
+      "was set, and a field off it that stays consistent with itself this long becomes the " \
+      "reference; 0 = the first reference is kept") \
     X(mag_reset_time, S, 3, 3, 0, 1e6, ANY, 1, "s", \
       "gating of an undisturbed field after which the heading is reset to it; 0 = never") \
     X(mag_ref_norm, S, 0, 0, 0, 1e6, ANY, 0, "mag unit", \
@@ -152,12 +161,11 @@ extern "C" {
       "random walk of the offset (its instability)") \
     X(mag_derate, S, 30, 30, 1, 1e4, ANY, 1, "1", \
       "factor on the magnetometer innovations' variance in the offset's update") \
-    X(motion, U16, 1, 1, 0, 2, ANY, 1, "0/1/2", \
+    X(motion, U16, 2, 2, 0, 2, ANY, 1, "0/1/2", \
       "learn the offset in motion: 0 no, 1 from the accelerometer, 2 and the magnetometer") \
-    X(vertical_tau, S, 10, 10, 0, 1e6, ANY, 1, "s", \
-      "time constant with which the offset's earth-vertical part decays when no magnetometer " \
-      "learns it (motion < 2): the accelerometer cannot tell it from noise; 0 = no decay") \
-    X(tmp_alpha, S, 1, 1, 0, 1e3, ANY, 1, "1", "tmp") \
+    X(quiet_accel, S, 1, 1, 0, 1e3, ANY, 1, "m/s^2", \
+      "the offset is learned in motion only while the accelerometer's short-term deviation " \
+      "from its low-pass (steps, impacts, shaking) stays below this") \
     X(hold_time, S, 2, 2, 0, 1e3, ANY, 1, "s", \
       "no learning for this long after evidence the offset cannot explain: a gap in the samples, " \
       "a clipped accelerometer, a saturated gyroscope, a bypassed gate")

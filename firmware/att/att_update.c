@@ -17,9 +17,6 @@ static void meas_trig(const att_vars_t *v, att_trig_t *t)
     t->secth = EKF_C(0);
 }
 
-/* 1 for a status that refuses the call (EKF_GATED and EKF_SKIPPED are not errors). */
-static int is_stage_error(ekf_status_t st) { return st != EKF_OK && st != EKF_GATED && st != EKF_SKIPPED; }
-
 /* 1 if an innovation would fail the gate of gate sigmas (a bypassed gate still judges the
  * innovations, so that the bypass lasts until they are consistent again). */
 static int fails_gate(const ekf_innov_t *info, ekf_scalar_t gate)
@@ -92,14 +89,16 @@ ekf_status_t att_stage_gyro_saturated(att_vars_t *v, const att_settings_t *s, co
     att_bias_restart(&v->bias);
     att_bias_hold(&v->bias, s->bias.hold_time);
     /* the low-passed force is carried over the step with the body rates, which this sample
-     * does not measure: start it again from the next accelerometer sample */
+     * does not measure: start it again from the next sample whose rates are measured */
     v->accel_lp_valid = 0u;
+    v->rate_unmeasured = 1u;
     ekf_count(&v->diag.gyro_saturated);
     return EKF_SKIPPED;
 }
 
 ekf_status_t att_stage_gyro(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t gyro[3], ekf_scalar_t dt)
 {
+    v->rate_unmeasured = 0u;
     ekf_scalar_t gate, r_var;
     ekf_status_t st;
     ekf_innov_t info;
@@ -161,7 +160,8 @@ static void cross3(const ekf_scalar_t a[3], const ekf_scalar_t b[3], ekf_scalar_
 static void to_interval_end(const att_vars_t *v, const ekf_scalar_t vec[3], ekf_scalar_t dt, ekf_scalar_t out[3])
 {
     const ekf_scalar_t own = (v->dt_nom > EKF_C(0)) ? ekf_min(dt, v->dt_nom) : dt;
-    const ekf_scalar_t half = ekf_mul(EKF_C(0.5), own);
+    /* (a saturated gyro leaves the rate state a guess: the sample is taken as it is) */
+    const ekf_scalar_t half = v->rate_unmeasured ? EKF_C(0) : ekf_mul(EKF_C(0.5), own);
     ekf_scalar_t th[3], c1[3], c2[3];
     int i;
     for (i = 0; i < 3; ++i) {
@@ -211,16 +211,26 @@ static void consider_accel(att_vars_t *v, const att_settings_t *s, const ekf_sca
 
 /* The vector the accelerometer stage fuses: at rest the sample itself (no linear
  * acceleration to filter out), else the low-passed force when the low-pass is on (every
- * sample enters it, fused or not), else the sample; each turned to the interval's end. The
- * running linear-acceleration variance follows it. Returns its norm. */
+ * sample enters it, fused or not, but for those of a saturated gyro: the low-pass turns with
+ * the rates, which they do not measure, and starts again after them), else the sample; each
+ * turned to the interval's end. The running linear-acceleration variances follow it. Returns
+ * its norm. */
 static ekf_scalar_t accel_vector(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t accel[3], ekf_scalar_t dt,
                                  int rest, ekf_scalar_t a[3])
 {
     ekf_scalar_t a_norm;
     int i;
     to_interval_end(v, accel, dt, a);
-    if (s->accel_lpf_tau > EKF_C(0)) {
+    if (s->accel_lpf_tau > EKF_C(0) && !v->rate_unmeasured) {
         accel_lp_blend(v, s, a, dt);
+        if (s->accel_adapt_tau > EKF_C(0)) {
+            const ekf_scalar_t k = ekf_div(dt, ekf_add(s->accel_adapt_tau, dt));
+            ekf_scalar_t d2 = EKF_C(0);
+            for (i = 0; i < 3; ++i) {
+                d2 = ekf_add(d2, ekf_sq(ekf_sub(a[i], v->accel_lp[i])));
+            }
+            v->accel_hf_var = ekf_mac(v->accel_hf_var, k, ekf_sub(d2, v->accel_hf_var));
+        }
         if (!rest) {
             for (i = 0; i < 3; ++i) {
                 a[i] = v->accel_lp[i];
@@ -270,49 +280,56 @@ static ekf_scalar_t accel_variance(att_vars_t *v, const att_settings_t *s, ekf_s
  * each innovation's variance (docs/derivation.md, "Gyroscope offset in motion"). */
 static ekf_scalar_t learn_excess(const att_vars_t *v, const att_settings_t *s, ekf_scalar_t dt, int rest)
 {
-    const ekf_scalar_t T = ekf_mul(ekf_mul(ekf_from_int((int32_t)s->accel_lpf_order), s->accel_lpf_tau), s->bias.tmp_alpha);
+    const ekf_scalar_t T = ekf_mul(ekf_from_int((int32_t)s->accel_lpf_order), s->accel_lpf_tau);
     if (rest || !(T > EKF_C(0))) {
         return EKF_C(0);
     }
     return ekf_div(ekf_mul(ekf_mul(EKF_C(2), ekf_div(v->accel_dev_var, ekf_sq(s->gravity))), T), dt);
 }
 
-/* The three components of the unit vector a / norm, fused sequentially with innovations
- * relinearised about the prior (h and H evaluated once there), which equals the batch
- * update of the 3-vector (docs/derivation.md, "Sequential vector updates"); each fused
- * component also teaches the offset in motion. Returns the first error, else EKF_GATED if a
- * component gated, else EKF_OK; *bypass_failed and *consistent as in att_stage_accel. */
+/* The unit vector a / norm, fused as its two components in the tangent plane of the
+ * predicted gravity direction h: along u_phi = dh/dphi / |dh/dphi| = (0, c_phi, -s_phi) with
+ * H = (c_th, 0, 0) on (phi, theta, psi), and along u_theta = dh/dtheta (a unit vector, at
+ * right angles to u_phi) with H = (0, 1, 0). Both are orthogonal to h (u^T h = 0 makes the
+ * innovation u^T a / norm), and the component along h (the norm) carries no attitude: for
+ * noise isotropic across the components this equals the batch update of the 3-vector
+ * (docs/derivation.md, "Accelerometer"). The second is relinearised about the prior. Each
+ * fused component also teaches the offset in motion. Returns the first error, else
+ * EKF_GATED if a component gated, else EKF_OK; *bypass_failed and *consistent as in
+ * att_stage_accel. */
 static ekf_status_t accel_fuse(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t a[3], ekf_scalar_t norm,
                                ekf_scalar_t r_var, ekf_scalar_t gate, ekf_scalar_t excess, int *bypass_failed,
                                int *consistent)
 {
     /* beyond the gimbal limit the kinematics are clamped: the innovations then carry the
      * clamp's error, not the offset's */
-    const int learn = s->bias.motion >= 1u && (v->flags & ATT_FLAG_GIMBAL_LOCK) == 0u;
-    const ekf_scalar_t phi0 = v->x[ATT_PHI], theta0 = v->x[ATT_THETA];
-    ekf_scalar_t h[3], hj[6];
+    const int learn = s->bias.motion >= 1u && (v->flags & ATT_FLAG_GIMBAL_LOCK) == 0u &&
+                      !(v->accel_hf_var > ekf_sq(s->bias.quiet_accel));
+    const ekf_scalar_t theta0 = v->x[ATT_THETA];
+    ekf_scalar_t u[2][3];
     att_trig_t t;
     ekf_innov_t info;
     ekf_status_t st, out = EKF_OK;
     int i;
     meas_trig(v, &t);
-    att_gen_accel_h(&t, h);
-    att_gen_accel_jacobian(&t, hj);
-    for (i = 0; i < 3; ++i) {
-        const ekf_scalar_t h3[3] = {hj[2 * i], hj[2 * i + 1], EKF_C(0)};
-        ekf_scalar_t pht[3];
-        ekf_scalar_t nu = ekf_sub(ekf_div(a[i], norm), h[i]);
-        nu = ekf_sub(nu, ekf_mul(hj[2 * i], ekf_sub(v->x[ATT_PHI], phi0)));
-        nu = ekf_sub(nu, ekf_mul(hj[2 * i + 1], ekf_sub(v->x[ATT_THETA], theta0)));
-        {
-            /* the angle rows of P h^T before the update: its gain times S */
-            const ekf_scalar_t p_ff = att_cov_var(&v->cov, ATT_PHI), p_tt = att_cov_var(&v->cov, ATT_THETA);
-            const ekf_scalar_t p_ft = att_cov_get(&v->cov, ATT_PHI, ATT_THETA);
-            pht[0] = ekf_mac(ekf_mul(p_ff, h3[0]), p_ft, h3[1]);
-            pht[1] = ekf_mac(ekf_mul(p_ft, h3[0]), p_tt, h3[1]);
-            pht[2] = ekf_mac(ekf_mul(att_cov_get(&v->cov, ATT_PSI, ATT_PHI), h3[0]),
-                             att_cov_get(&v->cov, ATT_PSI, ATT_THETA), h3[1]);
+    u[0][0] = EKF_C(0);
+    u[0][1] = t.cphi;
+    u[0][2] = ekf_neg(t.sphi);
+    u[1][0] = ekf_neg(t.cth);
+    u[1][1] = ekf_neg(ekf_mul(t.sphi, t.sth));
+    u[1][2] = ekf_neg(ekf_mul(t.cphi, t.sth));
+    for (i = 0; i < 2; ++i) {
+        const ekf_scalar_t h3[3] = {(i == 0) ? t.cth : EKF_C(0), (i == 0) ? EKF_C(0) : EKF_C(1), EKF_C(0)};
+        const int ang = (i == 0) ? ATT_PHI : ATT_THETA;
+        ekf_scalar_t pht[3], nu;
+        nu = ekf_div(ekf_mac(ekf_mac(ekf_mul(u[i][0], a[0]), u[i][1], a[1]), u[i][2], a[2]), norm);
+        if (i == 1) {
+            nu = ekf_sub(nu, ekf_sub(v->x[ATT_THETA], theta0)); /* relinearised about the prior */
         }
+        /* the angle rows of P h^T before the update: its gain times S */
+        pht[0] = ekf_mul(att_cov_get(&v->cov, ATT_PHI, ang), h3[i]);
+        pht[1] = ekf_mul(att_cov_get(&v->cov, ATT_THETA, ang), h3[i]);
+        pht[2] = ekf_mul(att_cov_get(&v->cov, ATT_PSI, ang), h3[i]);
         st = att_cov_update_angles(&v->cov, v->x, h3, nu, r_var, gate, s->var_floor, &info);
         if (st == EKF_OK) {
             (void)att_bias_update(&v->bias, learn, h3, pht, nu, info.variance,
@@ -358,7 +375,7 @@ ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_s
     var0[1] = att_cov_var(&v->cov, ATT_THETA);
     st = accel_fuse(v, s, a, a_norm, r_var, gate_for(v, s, ATT_SENSOR_ACCEL, s->accel_gate),
                     learn_excess(v, s, dt, rest), &bypass_failed, &consistent);
-    if (is_stage_error(st)) {
+    if (ekf_status_is_error(st)) {
         return st;
     }
     if (att_normalise(v)) {
@@ -409,6 +426,54 @@ static void reset_heading(att_vars_t *v, const att_settings_t *s, ekf_scalar_t h
     att_consider_heading_reset(&v->consider);
 }
 
+/* The learned magnetic reference (mag_ref_norm 0): a reference taken at alignment, perhaps
+ * in motion with the tilt still off, settles to the running mean of the field over the first
+ * quarter of mag_new_time; afterwards a field off the reference that stays within the
+ * tolerances of its own running mean for mag_new_time (a new place, not a passing iron)
+ * becomes the reference (docs/derivation.md, "Magnetometer"). */
+static void track_reference(att_vars_t *v, const att_settings_t *s, ekf_scalar_t norm, ekf_scalar_t dip,
+                            ekf_scalar_t dt)
+{
+    const ekf_scalar_t T = s->mag_new_time;
+    ekf_scalar_t k;
+    int settling, off, steady;
+    if (s->mag_ref_norm > EKF_C(0) || !(T > EKF_C(0))) {
+        return;
+    }
+    if (!(v->mag_avg_norm > EKF_C(0))) {
+        v->mag_avg_norm = norm;
+        v->mag_avg_dip = dip;
+    }
+    /* the dip is levelled with the estimated tilt: only samples whose tilt the accelerometer
+     * confirms tell the field's dip */
+    if (v->tilt_ok) {
+        k = ekf_div(dt, ekf_add(ekf_mul(EKF_C(0.125), T), dt));
+        v->mag_avg_norm = ekf_mac(v->mag_avg_norm, k, ekf_sub(norm, v->mag_avg_norm));
+        v->mag_avg_dip = ekf_mac(v->mag_avg_dip, k, ekf_sub(dip, v->mag_avg_dip));
+    }
+    settling = v->mag_new_clock < ekf_mul(EKF_C(0.25), T) && !v->mag_settled;
+    if (settling) {
+        if (v->tilt_ok) {
+            v->mag_new_clock = ekf_add(v->mag_new_clock, dt);
+            att_set_mag_reference(v, v->mag_avg_norm, v->mag_avg_dip);
+        }
+        return;
+    }
+    if (!v->mag_settled) {
+        v->mag_settled = 1u;
+        v->mag_new_clock = EKF_C(0);
+    }
+    off = ekf_abs(ekf_sub(ekf_div(norm, v->mag_ref_norm), EKF_C(1))) > s->mag_norm_tol ||
+          ekf_abs(ekf_sub(dip, v->mag_ref_dip)) > s->mag_dip_tol;
+    steady = !(ekf_abs(ekf_sub(ekf_div(norm, v->mag_avg_norm), EKF_C(1))) > s->mag_norm_tol) &&
+             !(ekf_abs(ekf_sub(dip, v->mag_avg_dip)) > s->mag_dip_tol);
+    v->mag_new_clock = (off && steady && v->tilt_ok) ? ekf_add(v->mag_new_clock, dt) : EKF_C(0);
+    if (v->mag_new_clock > T) {
+        att_set_mag_reference(v, v->mag_avg_norm, v->mag_avg_dip);
+        v->mag_new_clock = EKF_C(0);
+    }
+}
+
 ekf_status_t att_stage_mag(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t mag[3], ekf_scalar_t dt)
 {
     ekf_scalar_t lev[3], norm, heading, nu, r_var;
@@ -446,6 +511,7 @@ ekf_status_t att_stage_mag(att_vars_t *v, const att_settings_t *s, const ekf_sca
         ekf_count(&v->diag.mag_fused);
         return EKF_OK;
     }
+    track_reference(v, s, norm, att_mag_dip(lev), dt);
     v->diag.mag_norm_error = ekf_sub(ekf_div(norm, v->mag_ref_norm), EKF_C(1));
     v->diag.mag_dip_error = ekf_sub(att_mag_dip(lev), v->mag_ref_dip);
     if (ekf_abs(v->diag.mag_norm_error) > s->mag_norm_tol || ekf_abs(v->diag.mag_dip_error) > s->mag_dip_tol) {
@@ -480,6 +546,13 @@ ekf_status_t att_stage_mag(att_vars_t *v, const att_settings_t *s, const ekf_sca
     r_var = ekf_div(ekf_mac(ekf_sq(s->mag_heading_noise), v->mag_tan2_dip,
                             ekf_div(ekf_mul(v->accel_dev_var, s->accel_adapt_weight), ekf_sq(s->gravity))),
                     dt);
+    if (s->mag_norm_band > EKF_C(0) && s->mag_dip_band > EKF_C(0)) {
+        /* a field off its reference norm or dip is a disturbed one, and its heading errs with
+         * it (an iron nearby, a magnet on the sensor): trusted less the further it is off */
+        const ekf_scalar_t kn = ekf_div(v->diag.mag_norm_error, s->mag_norm_band);
+        const ekf_scalar_t kd = ekf_div(v->diag.mag_dip_error, s->mag_dip_band);
+        r_var = ekf_mul(r_var, ekf_add(EKF_C(1), ekf_add(ekf_sq(kn), ekf_sq(kd))));
+    }
     /* no gate bypass for the magnetometer (a magnet that passes the norm and dip tests would
      * drag the heading): recovery is the reset above, after mag_reset_time */
     {

@@ -186,7 +186,7 @@ int main(int argc, char **argv)
         }
         c_step = to_insns(elapsed(t0, t1) - base);
         stat_add(&st_step, c_step);
-        if (status != EKF_OK && status != EKF_GATED && status != EKF_SKIPPED) {
+        if (ekf_status_is_error(status)) {
             ++errors;
         }
 
@@ -235,7 +235,7 @@ int main(int argc, char **argv)
             t1 = TARGET_SYSTICK_NOW;
             c_gyro = to_insns(elapsed(t0, t1) - base);
             t0 = TARGET_SYSTICK_NOW;
-            (void)att_stage_predict(pv, set, s.dt);
+            (void)att_stage_predict(pv, set, s.dt, NULL);
             ekf_count(&pv->diag.steps);
             t1 = TARGET_SYSTICK_NOW;
             c_predict = to_insns(elapsed(t0, t1) - base);

@@ -47,14 +47,15 @@ FOLD_ORDER = ("rotation", "translation", "combined", "tapping", "vibration", "st
               "attached_magnet", "office_environment", "mixed")
 
 # name, grid values. accel_noise: weight of the accelerometer (the tilt correction's time
-# constant); accel_lpf_tau: the low-pass's time constant (linear-acceleration averaging
-# against the lag of the rate compensation); mag_heading_noise: weight of the magnetometer
-# (the heading correction's time constant against averaging of field errors); bias.walk: how
-# fast the offset learned in motion may change (att_bias.h).
+# constant; a density, m/s^2 sqrt(s)); accel_lpf_tau: the low-pass's time constant
+# (linear-acceleration averaging against the lag of the rate compensation); mag_heading_noise:
+# weight of the magnetometer (the heading correction's time constant against averaging of
+# field errors; rad sqrt(s)); bias.walk: how fast the offset learned in motion may change
+# (att_bias.h).
 DEFAULT_GRID: List[Tuple[str, List[float]]] = [
-    ("accel_noise", [0.3, 0.5, 0.7]),
+    ("accel_noise", [0.025, 0.035, 0.05]),
     ("accel_lpf_tau", [0.7, 1.0, 1.4]),
-    ("mag_heading_noise", [0.35, 0.5, 0.7]),
+    ("mag_heading_noise", [0.02, 0.03, 0.042]),
     ("bias.walk", [2e-5, 3e-5, 4.5e-5, 6.7e-5]),
 ]
 MAG_ONLY = ("mag_heading_noise", "mag_gate", "mag_norm_tol", "mag_dip_tol", "mag_reset_time")

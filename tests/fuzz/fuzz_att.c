@@ -35,7 +35,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
 enum { CALL_STEP = 0, CALL_PREDICT, CALL_GYRO, CALL_ACCEL, CALL_MAG, CALL_ALIGN };
 
-static int is_error(ekf_status_t st) { return st != EKF_OK && st != EKF_GATED && st != EKF_SKIPPED; }
+static int is_error(ekf_status_t st) { return ekf_status_is_error(st); }
 
 static int pos_def(const ekf_scalar_t *P)
 {

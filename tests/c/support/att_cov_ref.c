@@ -202,11 +202,22 @@ ekf_status_t att_cov_update_unit(att_cov_t *c, ekf_scalar_t x[ATT_N], int idx, e
 ekf_status_t att_cov_update_angles(att_cov_t *c, ekf_scalar_t x[ATT_N], const ekf_scalar_t h[3], ekf_scalar_t nu,
                                    ekf_scalar_t r_var, ekf_scalar_t gate, ekf_scalar_t var_floor, ekf_innov_t *info)
 {
-    /* the heading's entry only where it is not zero (the accelerometer's rows): the same
-     * sums as the packed implementation's, bit for bit */
-    static const uint8_t cols[3] = {ATT_PHI, ATT_THETA, ATT_PSI};
-    const ekf_hrow_t row = {cols, h, (h[2] != EKF_C(0)) ? 3u : 2u};
-    return ekf_update_scalar(x, c->P, ATT_N, &row, nu, r_var, gate, var_floor, info);
+    /* the entries of pitch and heading only where they are not zero (the accelerometer's
+     * rows): the same sums as the packed implementation's, bit for bit */
+    uint8_t cols[3];
+    ekf_scalar_t hv[3];
+    uint8_t n = 0u;
+    int k;
+    for (k = 0; k < 3; ++k) {
+        if (k == 0 || h[k] != EKF_C(0)) {
+            cols[n] = (uint8_t)(ATT_PHI + k);
+            hv[n++] = h[k];
+        }
+    }
+    {
+        const ekf_hrow_t row = {cols, hv, n};
+        return ekf_update_scalar(x, c->P, ATT_N, &row, nu, r_var, gate, var_floor, info);
+    }
 }
 
 int att_cov_is_pd(const att_cov_t *c, ekf_scalar_t rel_margin)
