@@ -201,8 +201,11 @@ ekf_status_t att_guard_covariance(att_vars_t *v, const att_settings_t *s)
      * the guard floors them first (raising a diagonal entry keeps P positive
      * (semi-)definite), then checks and if need be repairs. */
     rounds = att_cov_guard(&v->cov, ATT_PD_MARGIN, s->var_floor);
-    if (rounds < 0) {
-        return EKF_ERR_NUMERIC; /* a non-finite P, or a variance negative beyond rounding */
+    if (rounds < 0 || rounds > ATT_REPAIR_ROUNDS) {
+        /* a non-finite P, a variance negative beyond rounding, or a P that one round of
+         * rounding-sized loading does not make positive definite: not rounding's doing, and
+         * no repair may hide it (the call is refused; att.h, "Contract") */
+        return EKF_ERR_NUMERIC;
     }
     if (rounds > 0) {
         v->flags |= ATT_FLAG_COV_REPAIRED;

@@ -26,9 +26,13 @@
  * input is validated before the first write, and the stages run on a working copy that
  * replaces the filter's variables only when the whole call succeeded. EKF_GATED and
  * EKF_SKIPPED are not errors: the call was applied. After every successful call P is
- * symmetric positive definite with every variance >= var_floor (checked by the guard, and
- * repaired if rounding broke it: diag.cov_repairs, ATT_FLAG_COV_REPAIRED). The filter never
- * stores NaN or Inf. Outputs (att_get_*) only read.
+ * symmetric positive definite with every variance >= var_floor, checked by the guard at the
+ * end of the call: a P that rounding made indefinite by no more than a rounding-sized
+ * diagonal loading cures is repaired by that loading, and the repair reported as its own
+ * event (ATT_FLAG_COV_REPAIRED on that call, diag.cov_repairs); a P indefinite beyond that
+ * (a bug, or a filter whose memory was overwritten) refuses the call with EKF_ERR_NUMERIC,
+ * and every later call too until att_reset() or att_init() starts the filter afresh. The
+ * filter never stores NaN or Inf. Outputs (att_get_*) only read.
  */
 #ifndef ATT_H
 #define ATT_H
@@ -128,6 +132,8 @@ typedef struct {
     uint8_t tilt_ok;            /* last accelerometer update: fused, no linear acceleration,
                                    every innovation within 3 sigma (heading resets need it) */
     ekf_scalar_t last_dt;       /* s, of the last prediction (time base of the running means) */
+    att_trig_t trig;            /* sines and cosines (no clamp) of trig_at's roll and pitch, rad: */
+    ekf_scalar_t trig_at[2];    /* left by the prediction for the measurement stage after it */
     ekf_scalar_t dt_nom;        /* s: the sample interval without gaps (a running mean of the
                                    steps that are not gaps; 0 before the first) */
     att_rest_t rest;            /* rest detector and gyroscope offset */

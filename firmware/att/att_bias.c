@@ -65,19 +65,16 @@ void att_bias_predict(att_bias_t *bf, const att_bias_settings_t *s, const ekf_sc
      * offset in motion"); F_aa = I + D1's angle block. */
     const ekf_scalar_t q = ekf_mul(ekf_sq(in_units(s->walk)), dt);
     ekf_scalar_t *const V = bf->V;
-    ekf_scalar_t old[9];
+    const ekf_scalar_t v00 = V[0], v01 = V[1], v02 = V[2], v10 = V[3], v11 = V[4], v12 = V[5];
     int a, j;
-    for (j = 0; j < 9; ++j) {
-        old[j] = V[j];
-    }
     for (a = 0; a < 3; ++a) {
-        for (j = 0; j < 3; ++j) {
-            ekf_scalar_t v = ekf_add(old[3 * a + j], d1[D1(a, j)]);
-            v = ekf_mac(v, d1[D1(a, 3)], old[j]);
-            v = ekf_mac(v, d1[D1(a, 4)], old[3 + j]);
-            v = ekf_mac(v, d1[D1(a, 5)], old[6 + j]);
-            V[3 * a + j] = ekf_clamp(v, ekf_neg(BIAS_V_MAX), BIAS_V_MAX);
-        }
+        const ekf_scalar_t *const d = &d1[D1(a, 0)];
+        ekf_scalar_t *const row = &V[3 * a];
+        /* row a of (I + D_aa) V + D_aw; the heading column of D_aa is zero in these
+         * coordinates (att_gen_f1_pattern keeps its place) */
+        row[0] = ekf_clamp(ekf_mac(ekf_mac(ekf_add(row[0], d[0]), d[3], v00), d[4], v10), ekf_neg(BIAS_V_MAX), BIAS_V_MAX);
+        row[1] = ekf_clamp(ekf_mac(ekf_mac(ekf_add(row[1], d[1]), d[3], v01), d[4], v11), ekf_neg(BIAS_V_MAX), BIAS_V_MAX);
+        row[2] = ekf_clamp(ekf_mac(ekf_mac(ekf_add(row[2], d[2]), d[3], v02), d[4], v12), ekf_neg(BIAS_V_MAX), BIAS_V_MAX);
     }
     for (j = 0; j < 3; ++j) {
         bf->Pb[j] = ekf_add(bf->Pb[j], q);

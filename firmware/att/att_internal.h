@@ -26,6 +26,12 @@ enum { ATT_SENSOR_GYRO = 0, ATT_SENSOR_ACCEL = 1, ATT_SENSOR_MAG = 2 };
  * "Covariance bounds"). */
 #define ATT_PD_MARGIN ekf_mul(EKF_C(10 * ATT_N * ATT_N), EKF_SCALAR_EPS)
 
+/* Repair rounds the guard accepts: one, a diagonal loading by ten times the margin above
+ * (ekf_cov_ensure_pd's first round), the size of what rounding in one call can do. A P that
+ * needs more was indefinite beyond rounding (a kernel's bug, a corrupted filter): the call
+ * is refused rather than repaired (docs/derivation.md, "Covariance bounds"). */
+#define ATT_REPAIR_ROUNDS 1
+
 /* ---- helpers (att.c) ---- */
 
 /* 1 if every setting that cannot change while the filter runs (live = 0 in

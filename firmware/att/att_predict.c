@@ -165,6 +165,13 @@ ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scala
         v->x[i] = xn[i];
     }
     v->last_dt = dt;
+    if (!(ekf_abs(xn[ATT_THETA]) > s->gimbal_limit)) {
+        /* the new angles' trigonometry, unclamped here: the measurement stage that follows
+         * takes it instead of computing it again (att_update.c, meas_trig) */
+        v->trig = mo.t;
+        v->trig_at[0] = xn[ATT_PHI];
+        v->trig_at[1] = xn[ATT_THETA];
+    }
     if (s->accel_lpf_tau > EKF_C(0)) {
         accel_lp_turn(v, s, &mo);
     }

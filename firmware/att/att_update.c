@@ -12,6 +12,11 @@
  * sin and cos, never sec(theta), which is left at zero. */
 static void meas_trig(const att_vars_t *v, att_trig_t *t)
 {
+    if (v->x[ATT_PHI] == v->trig_at[0] && v->x[ATT_THETA] == v->trig_at[1] && v->trig.cth > EKF_C(0)) {
+        *t = v->trig; /* the prediction's, of these very angles */
+        t->secth = EKF_C(0);
+        return;
+    }
     ekf_sincos(v->x[ATT_PHI], &t->sphi, &t->cphi);
     ekf_sincos(v->x[ATT_THETA], &t->sth, &t->cth);
     t->secth = EKF_C(0);

@@ -53,10 +53,10 @@ FOLD_ORDER = ("rotation", "translation", "combined", "tapping", "vibration", "st
 # field errors; rad sqrt(s)); bias.walk: how fast the offset learned in motion may change
 # (att_bias.h).
 DEFAULT_GRID: List[Tuple[str, List[float]]] = [
-    ("accel_noise", [0.025, 0.035, 0.05]),
+    ("accel_noise", [0.03, 0.0414, 0.055]),
     ("accel_lpf_tau", [0.7, 1.0, 1.4]),
-    ("mag_heading_noise", [0.02, 0.03, 0.042]),
-    ("bias.walk", [2e-5, 3e-5, 4.5e-5, 6.7e-5]),
+    ("mag_heading_noise", [0.01, 0.015, 0.022]),
+    ("bias.walk", [3e-5, 6.7e-5, 1.5e-4]),
 ]
 MAG_ONLY = ("mag_heading_noise", "mag_gate", "mag_norm_tol", "mag_dip_tol", "mag_reset_time")
 

@@ -409,6 +409,50 @@ static void test_numeric_failures_discard_the_whole_call(void)
         REFUSED(&f, att_step(&f, &smp, &rep), NU, CNT_NUMERIC);
         expect_report(&rep, NU, SK, SK, SK);
     }
+    /* (d) a correlation beyond 1, 1.01 between roll and pitch or 1.05 between heading and
+     * yaw rate: every variance positive, P indefinite by far more than rounding. No call
+     * repairs it (a repair would hide what made it); every one is refused, the filter
+     * unchanged, until att_reset starts it afresh (att.h, "Contract") */
+    {
+        static const int pairs[2][2] = {{ATT_PHI, ATT_THETA}, {ATT_PSI, ATT_R}};
+        static const double rho[2] = {1.01, 1.05};
+        int k;
+        for (k = 0; k < 2; ++k) {
+            ekf_scalar_t P[ATT_N * ATT_N];
+            const int i = pairs[k][0], j = pairs[k][1];
+            aligned(&f, &sim);
+            sample_at_rest(&sim, &good);
+            att_get_covariance(&f, P);
+            {
+                const double pij = rho[k] * sqrt(ekf_to_double(P[i * ATT_N + i]) * ekf_to_double(P[j * ATT_N + j]));
+                int m;
+                for (m = 0; m < ATT_N; ++m) { /* the pair alone correlated */
+                    if (m != i && m != j) {
+                        P[i * ATT_N + m] = P[m * ATT_N + i] = EKF_C(0);
+                        P[j * ATT_N + m] = P[m * ATT_N + j] = EKF_C(0);
+                    }
+                }
+                P[i * ATT_N + j] = P[j * ATT_N + i] = ekf_from_double(pij);
+            }
+            att_cov_from_full(&f.vars.cov, P);
+            REFUSED(&f, att_update_accel(&f, good.accel, good.dt), NU, CNT_NUMERIC);
+            REFUSED(&f, att_step(&f, &good, &rep), NU, CNT_NUMERIC);
+            /* (a prediction alone may be accepted: its rate noise, added between the steps'
+             * gyro updates, can outweigh the defect; P is then positive definite on its own,
+             * and nothing was repaired) */
+            {
+                const ekf_status_t st = att_predict(&f, good.dt);
+                ekf_scalar_t Pn[ATT_N * ATT_N];
+                att_get_covariance(&f, Pn);
+                TEST_ASSERT_TRUE(st == EKF_ERR_NUMERIC ||
+                                 (st == EKF_OK && (att_flags(&f) & ATT_FLAG_COV_REPAIRED) == 0u &&
+                                  ts_is_positive_definite(Pn, ATT_N, NULL)));
+            }
+            TEST_ASSERT_EQUAL_INT(EKF_OK, att_reset(&f));
+            TEST_ASSERT_EQUAL_INT(0, (int)(att_flags(&f) & ATT_FLAG_ALIGNED));
+            TEST_ASSERT_EQUAL_INT(0, (int)att_diag(&f)->numeric);
+        }
+    }
     printf("forced numeric failures: %d refused calls checked\n", g_paths - before);
 }
 
