@@ -184,6 +184,46 @@ static void test_gimbal_hold(void)
     TEST_ASSERT_EQUAL_MEMORY(&before.cov, &v.cov, sizeof v.cov);
 }
 
+/* The heading update moves the pitch through their correlation: the gimbal flag follows the
+ * updated pitch. From 5 mrad inside gimbal_limit, with a pitch-heading correlation of 0.9, a
+ * heading innovation of 0.1 rad moves the pitch beyond the limit (flag set), one of 0.02 rad
+ * not (flag clear); the pitch after the update from the batch update in double. */
+static void test_gimbal_flag_after_update(void)
+{
+    const att_settings_t s = plain();
+    const double lim = ekf_to_double(s.gimbal_limit), nus[2] = {0.1, 0.02}, r = 0.01;
+    int c, i;
+    for (c = 0; c < 2; ++c) {
+        double x[ATT_N], P[ATT_N * ATT_N], H[ATT_N] = {0};
+        att_vars_t v;
+        ekf_scalar_t m[3];
+        memcpy(x, k_x, sizeof x);
+        x[ATT_THETA] = lim - 0.005;
+        memset(P, 0, sizeof P);
+        for (i = 0; i < ATT_N; ++i) {
+            P[i * (ATT_N + 1)] = k_var[i];
+        }
+        P[ATT_THETA * ATT_N + ATT_PSI] = P[ATT_PSI * ATT_N + ATT_THETA] = 0.9 * sqrt(k_var[ATT_THETA] * k_var[ATT_PSI]);
+        af_vars_full(&v, &s, x, P);
+        att_mag_set_reference(&v, ekf_from_double(ref_norm()), ekf_from_double(ref_dip()));
+        v.tilt_ok = 1u;
+        TEST_ASSERT_EQUAL_UINT32(0u, v.flags & ATT_FLAG_GIMBAL_LOCK);
+        for (i = 0; i < ATT_N; ++i) {
+            x[i] = ekf_to_double(v.x[i]);
+        }
+        af_cov(&v, P);
+        H[ATT_PSI] = 1.0;
+        af_batch_update(x, P, H, &nus[c], &r, 1);
+        /* the field at the state's own tilt: the levelled heading is the measured one */
+        af_field_body(BH, BV, 0.0, x[ATT_PHI], ekf_to_double(v.x[ATT_THETA]), ekf_to_double(v.x[ATT_PSI]) + nus[c], m);
+        TEST_ASSERT_EQUAL_INT(EKF_OK, att_stage_mag(&v, &s, m, EKF_C(DT)));
+        /* within a thousandth of its distance from the limit: on the same side, by the update */
+        AF_NEAR_S(x[ATT_THETA], v.x[ATT_THETA], 1e-3 * fabs(x[ATT_THETA] - lim));
+        TEST_ASSERT_TRUE((c == 0) ? x[ATT_THETA] > lim : x[ATT_THETA] < lim);
+        TEST_ASSERT_EQUAL_UINT32((c == 0) ? ATT_FLAG_GIMBAL_LOCK : 0u, v.flags & ATT_FLAG_GIMBAL_LOCK);
+    }
+}
+
 /* A field with no horizontal component (vertical in the levelled frame), or none at all:
  * no heading information. */
 static void test_no_horizontal_component(void)
@@ -473,6 +513,7 @@ int main(void)
     RUN_TEST(test_update_equals_batch);
     RUN_TEST(test_variance_terms);
     RUN_TEST(test_gimbal_hold);
+    RUN_TEST(test_gimbal_flag_after_update);
     RUN_TEST(test_no_horizontal_component);
     RUN_TEST(test_disturbance_tolerances);
     RUN_TEST(test_first_field_sets_reference_and_heading);

@@ -4,8 +4,8 @@
  * quaternion is checked through its rotation matrix against R = Rz Ry Rx; the reported
  * attitude covariance is built in double from its parts: P's angle block + V Pb V^T + the
  * considered terms + the reference terms (the magnetic one only while the heading is
- * magnetometer-referenced), the heading capped; att_get_variances reports those for the
- * angles and P's diagonal for the rates.
+ * magnetometer-referenced), roll and heading scaled beyond the gimbal limit, the heading
+ * capped; att_get_variances reports those for the angles and P's diagonal for the rates.
  */
 #include <math.h>
 #include <string.h>
@@ -134,7 +134,16 @@ static void test_full_covariance(void)
 
 /* The reported attitude covariance in double: P's angle block, V Pb V^T (Pb in
  * ATT_BIAS_UNIT^2), the considered variances, accel_ref_sigma^2 on roll and pitch,
- * mag_ref_sigma^2 on yaw when referenced; yaw capped at heading_var_max. */
+ * mag_ref_sigma^2 on yaw when referenced; beyond the gimbal limit (the flag set) the roll and
+ * yaw rows and columns scaled by k = cos(gimbal_limit) / |cos(theta)|, each factor capped
+ * where its variance would exceed heading_var_max but never below 1 (docs/derivation.md,
+ * "Gimbal lock"); yaw capped at heading_var_max. */
+static double gimbal_factor(const att_settings_t *s, double k, double var)
+{
+    const double floor_var = fmax(var, ekf_to_double(s->var_floor));
+    return fmax(1.0, fmin(k, sqrt(ekf_to_double(s->heading_var_max) / floor_var)));
+}
+
 static void expect_angle_cov(const att_settings_t *s, int referenced, double c[6])
 {
     static const int row[6] = {0, 1, 2, 0, 0, 1}, col[6] = {0, 1, 2, 1, 2, 2};
@@ -161,14 +170,25 @@ static void expect_angle_cov(const att_settings_t *s, int referenced, double c[6
                 pow(ekf_to_double(s->accel_ref_sigma), 2.0);
     }
     c[2] += ekf_to_double(g_f.vars.consider.rate[2]) + (referenced ? pow(ekf_to_double(s->mag_ref_sigma), 2.0) : 0.0);
+    if ((g_f.vars.flags & ATT_FLAG_GIMBAL_LOCK) != 0u) {
+        const double kg = cos(ekf_to_double(s->gimbal_limit)) / fabs(cos(ekf_to_double(g_f.vars.x[ATT_THETA])));
+        const double k_phi = gimbal_factor(s, kg, c[0]), k_psi = gimbal_factor(s, kg, c[2]);
+        c[0] *= k_phi * k_phi;
+        c[2] *= k_psi * k_psi;
+        c[3] *= k_phi;
+        c[4] *= k_phi * k_psi;
+        c[5] *= k_psi;
+    }
     c[2] = fmin(c[2], ekf_to_double(s->heading_var_max));
 }
 
-/* att_get_angle_covariance and att_get_variances, in every case of the reference terms and
- * with the heading cap; not aligned: P alone. */
+/* att_get_angle_covariance and att_get_variances, in every case of the reference terms, with
+ * the heading cap, beyond the gimbal limit (roll and heading scaled by k, about 2 here; with
+ * heading_var_max 0.004 the roll factor capped below k, where roll reaches the cap, and the
+ * heading's 1, its variance 0.0055 already above the cap); not aligned: P alone. */
 static void test_reported_covariance(void)
 {
-    enum { REFERENCED, LIMITED, NO_REFERENCE, CAPPED, NOT_ALIGNED };
+    enum { REFERENCED, LIMITED, NO_REFERENCE, CAPPED, GIMBAL, GIMBAL_CAPPED, NOT_ALIGNED };
     static const double Pb[6] = {4.0, 9.0, 16.0, 1.0, -2.0, 3.0};
     int c;
     for (c = REFERENCED; c <= NOT_ALIGNED; ++c) {
@@ -181,7 +201,15 @@ static void test_reported_covariance(void)
         if (c == CAPPED) {
             s.heading_var_max = EKF_C(0.004);
         }
+        if (c == GIMBAL_CAPPED) {
+            s.heading_var_max = EKF_C(0.004);
+        }
         filter(&s);
+        if (c == GIMBAL || c == GIMBAL_CAPPED) {
+            /* halfway between the limit and 90 deg: |cos(theta)| about half cos(gimbal_limit) */
+            g_f.vars.x[ATT_THETA] = ekf_from_double(-0.5 * (ekf_to_double(s.gimbal_limit) + acos(0.0)));
+            g_f.vars.flags |= ATT_FLAG_GIMBAL_LOCK;
+        }
         for (i = 0; i < 9; ++i) {
             g_f.vars.bias.V[i] = ekf_from_double(0.5 * (i % 4) - 0.7);
         }
@@ -209,14 +237,17 @@ static void test_reported_covariance(void)
             want[4] = P[ATT_PHI * ATT_N + ATT_PSI];
             want[5] = P[ATT_THETA * ATT_N + ATT_PSI];
         } else {
-            expect_angle_cov(&s, c == REFERENCED || c == CAPPED, want);
+            expect_angle_cov(&s, c != LIMITED && c != NO_REFERENCE, want);
         }
         att_get_angle_covariance(&g_f, got);
         for (i = 0; i < 6; ++i) {
             AF_NEAR_S(want[i], got[i], 16.0 * af_ulp(0.01));
         }
-        if (c == CAPPED) {
+        if (c == CAPPED || c == GIMBAL_CAPPED) {
             AF_NEAR_S(0.004, got[2], af_ulp(0.004));
+        }
+        if (c == GIMBAL_CAPPED) {
+            AF_NEAR_S(0.004, got[0], 16.0 * af_ulp(0.01));
         }
         att_get_variances(&g_f, var);
         for (i = 0; i < ATT_N; ++i) {
