@@ -1,12 +1,18 @@
 /*
  * rts.c - see rts.h.
+ *
+ * Every routine is written once for a size n and instantiated twice: for any n, and for the
+ * attitude filter's 9 states, where the constant bounds let the compiler unroll and vectorise
+ * the loops (the backward step is most of the smoother's cost beyond the filter's).
  */
 #include "rts.h"
 
 #include <math.h>
 #include <string.h>
 
-int rts_cholesky(size_t m, const double *A, double *L)
+#define RTS_N9 9
+
+static inline int chol_n(const size_t m, const double *A, double *L)
 {
     size_t i, j, k;
     for (j = 0; j < m; ++j) {
@@ -33,13 +39,10 @@ int rts_cholesky(size_t m, const double *A, double *L)
     return 1;
 }
 
-void rts_cholesky_solve(size_t m, const double *L, size_t k, const double *B, double *Y)
+/* L L^T Y = Y in place, k columns: L Z = Y, then L^T Y = Z, each column at once. */
+static inline void solve_n(const size_t m, const double *L, const size_t k, double *Y)
 {
     size_t i, j, c;
-    if (Y != B) {
-        memcpy(Y, B, sizeof(double) * m * k);
-    }
-    /* L Z = B, then L^T Y = Z, each column c at once */
     for (i = 0; i < m; ++i) {
         const double inv = 1.0 / L[i * m + i];
         for (j = 0; j < i; ++j) {
@@ -66,84 +69,181 @@ void rts_cholesky_solve(size_t m, const double *L, size_t k, const double *B, do
     }
 }
 
-/* x_s = x_f, P_s = P_f: nothing crosses the step. */
-static void keep_filtered(size_t n, const double *x_f, const double *P_f, double *x_s, double *P_s)
+int rts_cholesky(size_t m, const double *A, double *L) { return chol_n(m, A, L); }
+
+void rts_cholesky_solve(size_t m, const double *L, size_t k, const double *B, double *Y)
 {
-    memcpy(x_s, x_f, sizeof(double) * n);
-    memcpy(P_s, P_f, sizeof(double) * n * n);
+    if (Y != B) {
+        memcpy(Y, B, sizeof(double) * m * k);
+    }
+    solve_n(m, L, k, Y);
 }
 
-rts_status_t rts_step(size_t n, const double *x_f, const double *P_f, const double *F, const double *P_pred,
-                      const double *dx, const double *P_s1, unsigned cut, double *x_s, double *P_s)
+/* A gain that cuts every state: nothing crosses the step. */
+static void cut_all(size_t n, rts_gain_t *g)
 {
-    size_t idx[RTS_NMAX];
-    double S[RTS_NMAX * RTS_NMAX], L[RTS_NMAX * RTS_NMAX], Y[RTS_NMAX * RTS_NMAX], T[RTS_NMAX * RTS_NMAX];
-    size_t m = 0, a, b, i, j, l;
-    if (n == 0 || n > RTS_NMAX) {
-        return RTS_ERR_DIMENSION;
-    }
+    g->n = n;
+    g->cut = (1u << n) - 1u;
+    g->factored = g->cut;
+    memset(g->Y, 0, sizeof g->Y);
+    memset(g->L, 0, sizeof g->L);
+}
+
+static inline rts_status_t gain_n(const size_t n, const double *P_f, const double *F, const double *P_pred,
+                                  unsigned cut, rts_gain_t *g)
+{
+    double S[RTS_NMAX * RTS_NMAX];
+    double *Y = g->Y;
+    size_t i, j, l;
+    g->n = n;
+    g->cut = cut;
+    g->factored = cut;
     for (i = 0; i < n; ++i) {
-        if ((cut & (1u << i)) == 0u) {
-            idx[m++] = i;
-        }
-    }
-    if (m == 0) {
-        keep_filtered(n, x_f, P_f, x_s, P_s);
-        return RTS_OK;
-    }
-    /* the kept block of P_pred, and Y = (F P_f) on its rows: P_pred Y = F P_f solved below */
-    for (a = 0; a < m; ++a) {
-        const double *frow = &F[idx[a] * n];
-        for (b = 0; b < m; ++b) {
-            S[a * m + b] = P_pred[idx[a] * n + idx[b]];
-        }
+        const unsigned cut_i = (cut >> i) & 1u;
         for (j = 0; j < n; ++j) {
-            Y[a * n + j] = 0.0;
+            S[i * n + j] = (cut_i != 0u || ((cut >> j) & 1u) != 0u) ? (i == j ? 1.0 : 0.0) : P_pred[i * n + j];
+            Y[i * n + j] = 0.0;
         }
+        if (cut_i != 0u) {
+            continue;
+        }
+        /* Y = F P_f on the kept rows (F is sparse: its zeros skipped) */
         for (l = 0; l < n; ++l) {
-            const double f = frow[l];
+            const double f = F[i * n + l];
             if (f != 0.0) {
-                const double *prow = &P_f[l * n];
                 for (j = 0; j < n; ++j) {
-                    Y[a * n + j] += f * prow[j];
+                    Y[i * n + j] += f * P_f[l * n + j];
                 }
             }
         }
     }
-    if (!rts_cholesky(m, S, L)) {
-        keep_filtered(n, x_f, P_f, x_s, P_s);
+    if (!chol_n(n, S, g->L)) {
+        cut_all(n, g);
         return RTS_ERR_NOT_PD;
     }
-    rts_cholesky_solve(m, L, n, Y, Y); /* Y = P_pred^-1 F P_f (kept rows): C = Y^T */
-    /* x_s = x_f + C dx */
+    solve_n(n, g->L, n, Y); /* Y = P_pred^-1 F P_f on the kept rows: C = Y^T */
+    return RTS_OK;
+}
+
+static inline void apply_n(const size_t n, const rts_gain_t *g, const double *x_f, const double *P_f,
+                           const double *P_pred, const double *dx, const double *P_s1, double *x_s, double *P_s)
+{
+    double T[RTS_NMAX * RTS_NMAX];
+    const double *Y = g->Y;
+    size_t i, j, l;
+    /* x_s = x_f + C dx (Y's cut rows are zero, and so is their dx here) */
     for (j = 0; j < n; ++j) {
-        double s = x_f[j];
-        for (a = 0; a < m; ++a) {
-            s += Y[a * n + j] * dx[idx[a]];
-        }
-        x_s[j] = s;
+        x_s[j] = x_f[j];
     }
-    /* P_s = P_f + Y^T D Y with D = P_s1 - P_pred (kept block): T = D Y first */
-    for (a = 0; a < m; ++a) {
+    for (i = 0; i < n; ++i) {
+        const double d = ((g->cut >> i) & 1u) != 0u ? 0.0 : dx[i];
         for (j = 0; j < n; ++j) {
-            T[a * n + j] = 0.0;
+            x_s[j] += Y[i * n + j] * d;
         }
-        for (b = 0; b < m; ++b) {
-            const double d = P_s1[idx[a] * n + idx[b]] - P_pred[idx[a] * n + idx[b]];
+    }
+    /* P_s = P_f + Y^T D Y with D = P_s1 - P_pred: T = D Y first */
+    for (i = 0; i < n; ++i) {
+        for (j = 0; j < n; ++j) {
+            T[i * n + j] = 0.0;
+        }
+        if (((g->cut >> i) & 1u) != 0u) {
+            continue; /* Y^T's column i is zero: T's row i is never used */
+        }
+        for (l = 0; l < n; ++l) {
+            const double d = P_s1[i * n + l] - P_pred[i * n + l];
             for (j = 0; j < n; ++j) {
-                T[a * n + j] += d * Y[b * n + j];
+                T[i * n + j] += d * Y[l * n + j];
             }
         }
     }
     for (i = 0; i < n; ++i) {
         for (j = i; j < n; ++j) {
             double s = P_f[i * n + j];
-            for (a = 0; a < m; ++a) {
-                s += Y[a * n + i] * T[a * n + j];
+            for (l = 0; l < n; ++l) {
+                s += Y[l * n + i] * T[l * n + j];
             }
             P_s[i * n + j] = s;
             P_s[j * n + i] = s;
         }
     }
+}
+
+static inline void gain_cut_n(const size_t n, const rts_gain_t *g, size_t k, rts_gain_t *out)
+{
+    double u[RTS_NMAX] = {0};
+    size_t i, j;
+    if (out != g) {
+        *out = *g;
+    }
+    /* u = P^-1 e_k on the kept states (the cut ones are decoupled: their u is 0) */
+    u[k] = 1.0;
+    solve_n(n, g->L, 1, u);
+    for (i = 0; i < n; ++i) {
+        const double f = u[i] / u[k];
+        if (i == k || f == 0.0) {
+            continue;
+        }
+        for (j = 0; j < n; ++j) {
+            out->Y[i * n + j] -= f * out->Y[k * n + j];
+        }
+    }
+    for (j = 0; j < n; ++j) {
+        out->Y[k * n + j] = 0.0;
+    }
+    out->cut |= 1u << k; /* L stays that of g's system (factored) */
+}
+
+rts_status_t rts_gain(size_t n, const double *P_f, const double *F, const double *P_pred, unsigned cut,
+                      rts_gain_t *g)
+{
+    if (n == 0 || n > RTS_NMAX) {
+        cut_all(RTS_NMAX, g);
+        return RTS_ERR_ARGUMENT;
+    }
+    if ((cut & ((1u << n) - 1u)) == ((1u << n) - 1u)) {
+        cut_all(n, g);
+        return RTS_OK;
+    }
+    return (n == RTS_N9) ? gain_n(RTS_N9, P_f, F, P_pred, cut, g) : gain_n(n, P_f, F, P_pred, cut, g);
+}
+
+rts_status_t rts_gain_cut(const rts_gain_t *g, size_t i, rts_gain_t *out)
+{
+    if (i >= g->n || g->cut != g->factored) {
+        return RTS_ERR_ARGUMENT;
+    }
+    if (((g->cut >> i) & 1u) != 0u) {
+        if (out != g) {
+            *out = *g;
+        }
+        return RTS_OK;
+    }
+    if (g->n == RTS_N9) {
+        gain_cut_n(RTS_N9, g, i, out);
+    } else {
+        gain_cut_n(g->n, g, i, out);
+    }
     return RTS_OK;
+}
+
+void rts_apply(const rts_gain_t *g, const double *x_f, const double *P_f, const double *P_pred, const double *dx,
+               const double *P_s1, double *x_s, double *P_s)
+{
+    if (g->n == RTS_N9) {
+        apply_n(RTS_N9, g, x_f, P_f, P_pred, dx, P_s1, x_s, P_s);
+    } else {
+        apply_n(g->n, g, x_f, P_f, P_pred, dx, P_s1, x_s, P_s);
+    }
+}
+
+rts_status_t rts_step(size_t n, const double *x_f, const double *P_f, const double *F, const double *P_pred,
+                      const double *dx, const double *P_s1, unsigned cut, double *x_s, double *P_s)
+{
+    rts_gain_t g;
+    const rts_status_t st = rts_gain(n, P_f, F, P_pred, cut, &g);
+    if (st == RTS_ERR_ARGUMENT) {
+        return st;
+    }
+    rts_apply(&g, x_f, P_f, P_pred, dx, P_s1, x_s, P_s);
+    return st;
 }

@@ -17,8 +17,8 @@
  * A cut (bit i of cut set) says that component i of epoch k+1 took a jump of unbounded
  * variance in the step (a reset of that component): the limit of the gain for that process
  * noise going to infinity is the same formula with P_pred restricted to the other
- * components, and dx's and P_s1's cut components play no part. Cutting every component
- * gives x_s = x_f, P_s = P_f (no information crosses the step).
+ * components (C's column i is zero), so dx's and P_s1's cut components play no part. Cutting
+ * every component gives x_s = x_f, P_s = P_f (no information crosses the step).
  *
  * Generic and independent of the attitude model (tests/c/test_rts.c checks it against a
  * batch least-squares solution of linear-Gaussian problems). Host-side C99, no allocation.
@@ -34,15 +34,42 @@ extern "C" {
 
 #define RTS_NMAX 12
 
-/* Status of rts_step. */
+/* Status of the calls below. */
 typedef enum {
     RTS_OK = 0,
-    RTS_ERR_DIMENSION = 1, /* n is 0 or above RTS_NMAX */
+    RTS_ERR_ARGUMENT = 1,  /* n is 0 or above RTS_NMAX, a state out of range, or a gain that
+                              rts_gain_cut cannot cut further */
     RTS_ERR_NOT_PD = 2     /* P_pred (its kept block) is not positive definite, or not finite */
 } rts_status_t;
 
-/* One backward step (row-major n x n matrices; P_f, P_pred, P_s1 symmetric). x_s and P_s
- * may not alias the inputs. On RTS_ERR_NOT_PD x_s = x_f and P_s = P_f (the step is cut). */
+/* The gain of one step: Y = C^T (row-major n x n, zero rows for the cut states) and the
+ * Cholesky factor L of P_pred with the cut states' rows and columns replaced by the
+ * identity's (which makes the system block diagonal: Y's kept rows are the kept block's
+ * solution). */
+typedef struct {
+    size_t n;
+    unsigned cut;
+    unsigned factored; /* the cut set of L (rts_gain_cut changes cut, not L) */
+    double Y[RTS_NMAX * RTS_NMAX];
+    double L[RTS_NMAX * RTS_NMAX];
+} rts_gain_t;
+
+/* The gain for the step (row-major n x n matrices; P_f and P_pred symmetric). RTS_ERR_NOT_PD
+ * leaves a gain that cuts every state (rts_apply then gives x_s = x_f, P_s = P_f). */
+rts_status_t rts_gain(size_t n, const double *P_f, const double *F, const double *P_pred, unsigned cut,
+                      rts_gain_t *g);
+
+/* The gain of the same step with state i cut too, from a gain of rts_gain (a rank-one change:
+ * with u = P_pred^-1 e_i on the kept states, Y' = Y - u Y[i, :] / u_i); out may be g.
+ * RTS_ERR_ARGUMENT for a state out of range or a gain already cut by this function. */
+rts_status_t rts_gain_cut(const rts_gain_t *g, size_t i, rts_gain_t *out);
+
+/* The smoothed state and covariance of epoch k with the gain g (x_s, P_s may not alias the
+ * inputs). */
+void rts_apply(const rts_gain_t *g, const double *x_f, const double *P_f, const double *P_pred, const double *dx,
+               const double *P_s1, double *x_s, double *P_s);
+
+/* rts_gain and rts_apply: one backward step. On RTS_ERR_NOT_PD x_s = x_f and P_s = P_f. */
 rts_status_t rts_step(size_t n, const double *x_f, const double *P_f, const double *F, const double *P_pred,
                       const double *dx, const double *P_s1, unsigned cut, double *x_s, double *P_s);
 

@@ -26,8 +26,13 @@
 #include "testsim.h"
 #include "unity.h"
 
-#define NS 4              /* states */
-#define NZ 2              /* measurements per epoch */
+/* Built twice (tests/c/CMakeLists.txt): 4 states, and the attitude filter's 9, for which rts.c
+ * has its own instance of every routine. */
+#ifndef RTS_TEST_STATES
+#define RTS_TEST_STATES 4
+#endif
+#define NS RTS_TEST_STATES /* states */
+#define NZ 3               /* measurements per epoch */
 #define NE 12             /* epochs */
 #define NB (NS * NE)      /* batch unknowns */
 
@@ -448,8 +453,41 @@ static void test_refuses_an_indefinite_prediction_and_bad_sizes(void)
     TEST_ASSERT_EQUAL_INT(RTS_ERR_NOT_PD, rts_step(2, xf, Pf, F, Pnan, dx, Ps1, 0u, xs, Ps));
     /* the indefinite block cut away: what is left is positive definite */
     TEST_ASSERT_EQUAL_INT(RTS_OK, rts_step(2, xf, Pf, F, Pnan, dx, Ps1, 2u, xs, Ps));
-    TEST_ASSERT_EQUAL_INT(RTS_ERR_DIMENSION, rts_step(0, xf, Pf, F, Pp, dx, Ps1, 0u, xs, Ps));
-    TEST_ASSERT_EQUAL_INT(RTS_ERR_DIMENSION, rts_step(RTS_NMAX + 1, xf, Pf, F, Pp, dx, Ps1, 0u, xs, Ps));
+    TEST_ASSERT_EQUAL_INT(RTS_ERR_ARGUMENT, rts_step(0, xf, Pf, F, Pp, dx, Ps1, 0u, xs, Ps));
+    TEST_ASSERT_EQUAL_INT(RTS_ERR_ARGUMENT, rts_step(RTS_NMAX + 1, xf, Pf, F, Pp, dx, Ps1, 0u, xs, Ps));
+}
+
+
+/* One more cut from a gain equals the gain computed with that cut (the rank-one change),
+ * and the smoothed values with it; a gain already cut so is refused. */
+static void test_gain_cut_equals_gain_with_the_cut(void)
+{
+    static problem_t pb;
+    static forward_t fw;
+    uint64_t seed;
+    for (seed = 1; seed <= 20; ++seed) {
+        const int k = (int)(seed % (NE - 1));
+        const unsigned first = (seed % 3 == 0) ? (1u << ((seed + 1) % NS)) : 0u;
+        const size_t extra = (size_t)(seed % NS);
+        rts_gain_t a, b;
+        double xa[NS], xb[NS], Pa[NS * NS], Pb[NS * NS], dx[NS];
+        int i;
+        make_problem(&pb, seed, -1, 0);
+        forward_filter(&pb, &fw);
+        for (i = 0; i < NS; ++i) {
+            dx[i] = 0.1 * (double)(i + 1);
+        }
+        TEST_ASSERT_EQUAL_INT(RTS_OK, rts_gain(NS, fw.Pf[k], pb.F[k], fw.Pp[k + 1], first | (1u << extra), &a));
+        TEST_ASSERT_EQUAL_INT(RTS_OK, rts_gain(NS, fw.Pf[k], pb.F[k], fw.Pp[k + 1], first, &b));
+        TEST_ASSERT_EQUAL_INT(RTS_OK, rts_gain_cut(&b, extra, &b));
+        TEST_ASSERT_EQUAL_UINT(a.cut, b.cut);
+        TEST_ASSERT_TRUE(max_rel_diff(b.Y, a.Y, NS * NS) < 1e-12);
+        rts_apply(&a, fw.xf[k], fw.Pf[k], fw.Pp[k + 1], dx, fw.Pf[k + 1], xa, Pa);
+        rts_apply(&b, fw.xf[k], fw.Pf[k], fw.Pp[k + 1], dx, fw.Pf[k + 1], xb, Pb);
+        TEST_ASSERT_TRUE(max_rel_diff(xb, xa, NS) < 1e-12);
+        TEST_ASSERT_TRUE(max_rel_diff(Pb, Pa, NS * NS) < 1e-12);
+        TEST_ASSERT_EQUAL_INT(RTS_ERR_ARGUMENT, rts_gain_cut(&b, (extra + 1) % NS, &a));
+    }
 }
 
 int main(void)
@@ -461,5 +499,6 @@ int main(void)
     RUN_TEST(test_full_cut_keeps_the_filtered_values);
     RUN_TEST(test_scalar_step_by_hand);
     RUN_TEST(test_refuses_an_indefinite_prediction_and_bad_sizes);
+    RUN_TEST(test_gain_cut_equals_gain_with_the_cut);
     return UNITY_END();
 }
