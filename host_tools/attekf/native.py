@@ -411,10 +411,11 @@ def _diag_values(lib: Library, core) -> Dict[str, Union[float, tuple]]:
 
 def run_arrays(t: np.ndarray, gyr: np.ndarray, acc: np.ndarray, mag: Optional[np.ndarray] = None,
                settings: Optional[Dict[str, float]] = None, scalar: str = "float",
-               progress: Optional[Callable[[int], None]] = None) -> Result:
+               progress: Optional[Callable[[int], None]] = None, smooth: bool = False) -> Result:
     """Runs the C estimator on arrays: t (N,) s, gyr/acc/mag (N, 3) (mag None or all-NaN rows
     for no magnetometer). One C call, or blocks when progress(k) is given: it is called with
-    the number of samples just done."""
+    the number of samples just done. smooth: the filter and its smoother (smooth_core;
+    progress then counts 2 N)."""
     lib = load(scalar)
     t = np.ascontiguousarray(t, dtype=np.float64)
     n = t.shape[0]
@@ -423,13 +424,14 @@ def run_arrays(t: np.ndarray, gyr: np.ndarray, acc: np.ndarray, mag: Optional[np
     mag = None if mag is None else rows3("mag", mag, "uT", n, layout_known=True)
     core = lib.new_core(lib.make_settings(settings))
     # the first step of a new filter is an alignment sample's, which the filter does not use
-    return run_core(lib, core, t, time_steps(n, t=t, first=1.0 if n == 1 else None), gyr, acc, mag, progress)
+    steps = time_steps(n, t=t, first=1.0 if n == 1 else None)
+    return (smooth_core if smooth else run_core)(lib, core, t, steps, gyr, acc, mag, progress)
 
 
 def run_estimator(recording, settings: Optional[Dict[str, float]] = None,
                   scalar: str = "float", use_mag: bool = True,
-                  progress: Optional[Callable[[int], None]] = None) -> Result:
+                  progress: Optional[Callable[[int], None]] = None, smooth: bool = False) -> Result:
     """Runs the C estimator over a recording (attekf.io.Recording; use_mag=False: as if it had
-    no magnetometer)."""
+    no magnetometer); smooth: and its smoother (run_arrays)."""
     return run_arrays(recording.t, recording.gyr, recording.acc,
-                      recording.mag if use_mag else None, settings, scalar, progress)
+                      recording.mag if use_mag else None, settings, scalar, progress, smooth)

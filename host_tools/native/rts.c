@@ -2,8 +2,10 @@
  * rts.c - see rts.h.
  *
  * Every routine is written once for a size n and instantiated twice: for any n, and for the
- * attitude filter's 9 states, where the constant bounds let the compiler unroll and vectorise
- * the loops (the backward step is most of the smoother's cost beyond the filter's).
+ * attitude filter's 9 states, where constant bounds let the compiler unroll and vectorise the
+ * loops (the backward step is most of the smoother's cost beyond the filter's). The working
+ * matrices have rows of an even length ld (n, rounded up; the padding column is zero) so that
+ * every inner loop runs over whole pairs of doubles.
  */
 #include "rts.h"
 
@@ -11,42 +13,45 @@
 #include <string.h>
 
 #define RTS_N9 9
+#define LD9 RTS_LD(RTS_N9)
 
-static inline int chol_n(const size_t m, const double *A, double *L)
+/* L L^T = A (A and L m x m with row stride ld; L lower, its upper part zero). */
+static inline int chol_n(const size_t m, const size_t ld, const double *A, double *L)
 {
     size_t i, j, k;
     for (j = 0; j < m; ++j) {
-        double d = A[j * m + j];
+        double d = A[j * ld + j];
         for (k = 0; k < j; ++k) {
-            d -= L[j * m + k] * L[j * m + k];
+            d -= L[j * ld + k] * L[j * ld + k];
         }
         if (!(d > 0.0) || !isfinite(d)) {
             return 0;
         }
         d = sqrt(d);
-        L[j * m + j] = d;
+        L[j * ld + j] = d;
         for (i = j + 1; i < m; ++i) {
-            double s = A[i * m + j];
+            double s = A[i * ld + j];
             for (k = 0; k < j; ++k) {
-                s -= L[i * m + k] * L[j * m + k];
+                s -= L[i * ld + k] * L[j * ld + k];
             }
-            L[i * m + j] = s / d;
+            L[i * ld + j] = s / d;
         }
         for (i = 0; i < j; ++i) {
-            L[i * m + j] = 0.0;
+            L[i * ld + j] = 0.0;
         }
     }
     return 1;
 }
 
-/* L L^T Y = Y in place, k columns: L Z = Y, then L^T Y = Z, each column at once. */
-static inline void solve_n(const size_t m, const double *L, const size_t k, double *Y)
+/* L L^T Y = Y in place (L m x m with row stride ld; Y m rows of k columns): L Z = Y, then
+ * L^T Y = Z, every column at once. */
+static inline void solve_n(const size_t m, const size_t ld, const double *L, const size_t k, double *Y)
 {
     size_t i, j, c;
     for (i = 0; i < m; ++i) {
-        const double inv = 1.0 / L[i * m + i];
+        const double inv = 1.0 / L[i * ld + i];
         for (j = 0; j < i; ++j) {
-            const double l = L[i * m + j];
+            const double l = L[i * ld + j];
             for (c = 0; c < k; ++c) {
                 Y[i * k + c] -= l * Y[j * k + c];
             }
@@ -56,9 +61,9 @@ static inline void solve_n(const size_t m, const double *L, const size_t k, doub
         }
     }
     for (i = m; i-- > 0;) {
-        const double inv = 1.0 / L[i * m + i];
+        const double inv = 1.0 / L[i * ld + i];
         for (j = i + 1; j < m; ++j) {
-            const double l = L[j * m + i];
+            const double l = L[j * ld + i];
             for (c = 0; c < k; ++c) {
                 Y[i * k + c] -= l * Y[j * k + c];
             }
@@ -69,14 +74,14 @@ static inline void solve_n(const size_t m, const double *L, const size_t k, doub
     }
 }
 
-int rts_cholesky(size_t m, const double *A, double *L) { return chol_n(m, A, L); }
+int rts_cholesky(size_t m, const double *A, double *L) { return chol_n(m, m, A, L); }
 
 void rts_cholesky_solve(size_t m, const double *L, size_t k, const double *B, double *Y)
 {
     if (Y != B) {
         memcpy(Y, B, sizeof(double) * m * k);
     }
-    solve_n(m, L, k, Y);
+    solve_n(m, m, L, k, Y);
 }
 
 /* A gain that cuts every state: nothing crosses the step. */
@@ -89,86 +94,116 @@ static void cut_all(size_t n, rts_gain_t *g)
     memset(g->L, 0, sizeof g->L);
 }
 
-static inline rts_status_t gain_n(const size_t n, const double *P_f, const double *F, const double *P_pred,
-                                  unsigned cut, rts_gain_t *g)
+static inline rts_status_t gain_n(const size_t n, const size_t ld, const double *P_f, const double *F,
+                                  const double *P_pred, unsigned cut, rts_gain_t *g)
 {
-    double S[RTS_NMAX * RTS_NMAX];
+    double S[RTS_NMAX * RTS_NMAX], Pf[RTS_NMAX * RTS_NMAX];
     double *Y = g->Y;
     size_t i, j, l;
     g->n = n;
     g->cut = cut;
     g->factored = cut;
     for (i = 0; i < n; ++i) {
-        const unsigned cut_i = (cut >> i) & 1u;
-        for (j = 0; j < n; ++j) {
-            S[i * n + j] = (cut_i != 0u || ((cut >> j) & 1u) != 0u) ? (i == j ? 1.0 : 0.0) : P_pred[i * n + j];
-            Y[i * n + j] = 0.0;
+        for (j = 0; j < ld; ++j) {
+            S[i * ld + j] = (j < n) ? P_pred[i * n + j] : 0.0;
+            Pf[i * ld + j] = (j < n) ? P_f[i * n + j] : 0.0;
         }
-        if (cut_i != 0u) {
-            continue;
+    }
+    /* Y = F P_f (row i: P_f's rows weighted by F's row i) */
+    for (i = 0; i < n; ++i) {
+        for (j = 0; j < ld; ++j) {
+            Y[i * ld + j] = 0.0;
         }
-        /* Y = F P_f on the kept rows (F is sparse: its zeros skipped) */
         for (l = 0; l < n; ++l) {
             const double f = F[i * n + l];
-            if (f != 0.0) {
-                for (j = 0; j < n; ++j) {
-                    Y[i * n + j] += f * P_f[l * n + j];
-                }
+            if (f == 0.0) {
+                continue; /* F is sparse (its zeros are the same in every step: predicted well) */
+            }
+            for (j = 0; j < ld; ++j) {
+                Y[i * ld + j] += f * Pf[l * ld + j];
             }
         }
     }
-    if (!chol_n(n, S, g->L)) {
+    if (cut != 0u) {
+        /* a cut state's row and column of P_pred become the identity's, its row of F P_f zero:
+         * the system is then block diagonal, and Y's kept rows solve the kept block */
+        for (i = 0; i < n; ++i) {
+            if (((cut >> i) & 1u) == 0u) {
+                continue;
+            }
+            for (j = 0; j < n; ++j) {
+                S[i * ld + j] = S[j * ld + i] = 0.0;
+            }
+            for (j = 0; j < ld; ++j) {
+                Y[i * ld + j] = 0.0;
+            }
+            S[i * ld + i] = 1.0;
+        }
+    }
+    if (!chol_n(n, ld, S, g->L)) {
         cut_all(n, g);
         return RTS_ERR_NOT_PD;
     }
-    solve_n(n, g->L, n, Y); /* Y = P_pred^-1 F P_f on the kept rows: C = Y^T */
+    solve_n(n, ld, g->L, ld, Y); /* Y = P_pred^-1 F P_f on the kept rows: C = Y^T */
     return RTS_OK;
 }
 
-static inline void apply_n(const size_t n, const rts_gain_t *g, const double *x_f, const double *P_f,
-                           const double *P_pred, const double *dx, const double *P_s1, double *x_s, double *P_s)
+static inline void apply_n(const size_t n, const size_t ld, const rts_gain_t *g, const double *x_f,
+                           const double *P_f, const double *P_pred, const double *dx, const double *P_s1, double *x_s,
+                           double *P_s)
 {
-    double T[RTS_NMAX * RTS_NMAX];
+    double D[RTS_NMAX * RTS_NMAX], T[RTS_NMAX * RTS_NMAX], M[RTS_NMAX * RTS_NMAX], xs[RTS_NMAX];
     const double *Y = g->Y;
     size_t i, j, l;
     /* x_s = x_f + C dx (Y's cut rows are zero, and so is their dx here) */
-    for (j = 0; j < n; ++j) {
-        x_s[j] = x_f[j];
+    for (j = 0; j < ld; ++j) {
+        xs[j] = 0.0;
     }
     for (i = 0; i < n; ++i) {
         const double d = ((g->cut >> i) & 1u) != 0u ? 0.0 : dx[i];
-        for (j = 0; j < n; ++j) {
-            x_s[j] += Y[i * n + j] * d;
+        for (j = 0; j < ld; ++j) {
+            xs[j] += Y[i * ld + j] * d;
         }
     }
-    /* P_s = P_f + Y^T D Y with D = P_s1 - P_pred: T = D Y first */
+    for (j = 0; j < n; ++j) {
+        x_s[j] = x_f[j] + xs[j];
+    }
+    /* P_s = P_f + Y^T D Y with D = P_s1 - P_pred: T = D Y, then M = Y^T T as a sum of outer
+     * products of their rows, its upper triangle mirrored */
     for (i = 0; i < n; ++i) {
-        for (j = 0; j < n; ++j) {
-            T[i * n + j] = 0.0;
+        for (j = 0; j < ld; ++j) {
+            D[i * ld + j] = (j < n) ? P_s1[i * n + j] - P_pred[i * n + j] : 0.0;
+            T[i * ld + j] = 0.0;
+            M[i * ld + j] = 0.0;
         }
+    }
+    for (i = 0; i < n; ++i) {
         if (((g->cut >> i) & 1u) != 0u) {
-            continue; /* Y^T's column i is zero: T's row i is never used */
+            continue; /* Y's row i is zero: T's row i is never used */
         }
         for (l = 0; l < n; ++l) {
-            const double d = P_s1[i * n + l] - P_pred[i * n + l];
-            for (j = 0; j < n; ++j) {
-                T[i * n + j] += d * Y[l * n + j];
+            const double d = D[i * ld + l];
+            for (j = 0; j < ld; ++j) {
+                T[i * ld + j] += d * Y[l * ld + j];
+            }
+        }
+    }
+    for (l = 0; l < n; ++l) {
+        for (i = 0; i < n; ++i) {
+            const double y = Y[l * ld + i];
+            for (j = 0; j < ld; ++j) {
+                M[i * ld + j] += y * T[l * ld + j];
             }
         }
     }
     for (i = 0; i < n; ++i) {
         for (j = i; j < n; ++j) {
-            double s = P_f[i * n + j];
-            for (l = 0; l < n; ++l) {
-                s += Y[l * n + i] * T[l * n + j];
-            }
-            P_s[i * n + j] = s;
-            P_s[j * n + i] = s;
+            P_s[i * n + j] = P_s[j * n + i] = P_f[i * n + j] + M[i * ld + j];
         }
     }
 }
 
-static inline void gain_cut_n(const size_t n, const rts_gain_t *g, size_t k, rts_gain_t *out)
+static inline void gain_cut_n(const size_t n, const size_t ld, const rts_gain_t *g, size_t k, rts_gain_t *out)
 {
     double u[RTS_NMAX] = {0};
     size_t i, j;
@@ -177,18 +212,18 @@ static inline void gain_cut_n(const size_t n, const rts_gain_t *g, size_t k, rts
     }
     /* u = P^-1 e_k on the kept states (the cut ones are decoupled: their u is 0) */
     u[k] = 1.0;
-    solve_n(n, g->L, 1, u);
+    solve_n(n, ld, g->L, 1, u);
     for (i = 0; i < n; ++i) {
         const double f = u[i] / u[k];
         if (i == k || f == 0.0) {
             continue;
         }
-        for (j = 0; j < n; ++j) {
-            out->Y[i * n + j] -= f * out->Y[k * n + j];
+        for (j = 0; j < ld; ++j) {
+            out->Y[i * ld + j] -= f * out->Y[k * ld + j];
         }
     }
-    for (j = 0; j < n; ++j) {
-        out->Y[k * n + j] = 0.0;
+    for (j = 0; j < ld; ++j) {
+        out->Y[k * ld + j] = 0.0;
     }
     out->cut |= 1u << k; /* L stays that of g's system (factored) */
 }
@@ -204,7 +239,8 @@ rts_status_t rts_gain(size_t n, const double *P_f, const double *F, const double
         cut_all(n, g);
         return RTS_OK;
     }
-    return (n == RTS_N9) ? gain_n(RTS_N9, P_f, F, P_pred, cut, g) : gain_n(n, P_f, F, P_pred, cut, g);
+    return (n == RTS_N9) ? gain_n(RTS_N9, LD9, P_f, F, P_pred, cut, g)
+                         : gain_n(n, RTS_LD(n), P_f, F, P_pred, cut, g);
 }
 
 rts_status_t rts_gain_cut(const rts_gain_t *g, size_t i, rts_gain_t *out)
@@ -219,9 +255,9 @@ rts_status_t rts_gain_cut(const rts_gain_t *g, size_t i, rts_gain_t *out)
         return RTS_OK;
     }
     if (g->n == RTS_N9) {
-        gain_cut_n(RTS_N9, g, i, out);
+        gain_cut_n(RTS_N9, LD9, g, i, out);
     } else {
-        gain_cut_n(g->n, g, i, out);
+        gain_cut_n(g->n, RTS_LD(g->n), g, i, out);
     }
     return RTS_OK;
 }
@@ -230,9 +266,9 @@ void rts_apply(const rts_gain_t *g, const double *x_f, const double *P_f, const 
                const double *P_s1, double *x_s, double *P_s)
 {
     if (g->n == RTS_N9) {
-        apply_n(RTS_N9, g, x_f, P_f, P_pred, dx, P_s1, x_s, P_s);
+        apply_n(RTS_N9, LD9, g, x_f, P_f, P_pred, dx, P_s1, x_s, P_s);
     } else {
-        apply_n(g->n, g, x_f, P_f, P_pred, dx, P_s1, x_s, P_s);
+        apply_n(g->n, RTS_LD(g->n), g, x_f, P_f, P_pred, dx, P_s1, x_s, P_s);
     }
 }
 

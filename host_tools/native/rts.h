@@ -42,10 +42,13 @@ typedef enum {
     RTS_ERR_NOT_PD = 2     /* P_pred (its kept block) is not positive definite, or not finite */
 } rts_status_t;
 
-/* The gain of one step: Y = C^T (row-major n x n, zero rows for the cut states) and the
- * Cholesky factor L of P_pred with the cut states' rows and columns replaced by the
- * identity's (which makes the system block diagonal: Y's kept rows are the kept block's
- * solution). */
+/* Row stride of a gain's matrices: n rounded up to even (whole pairs of doubles). */
+#define RTS_LD(n) ((n) + ((n) & 1u))
+
+/* The gain of one step: Y = C^T (n rows of stride RTS_LD(n), the padding zero; zero rows for
+ * the cut states) and the Cholesky factor L (likewise) of P_pred with the cut states' rows and
+ * columns replaced by the identity's (which makes the system block diagonal: Y's kept rows
+ * are the kept block's solution). */
 typedef struct {
     size_t n;
     unsigned cut;

@@ -23,7 +23,7 @@
 #include "rts.h"
 
 #define SMOOTH_PI 3.14159265358979323846
-#define SMOOTH_BLOCK 20000u /* samples between progress calls */
+#define SMOOTH_BLOCK 4096u /* samples between progress calls (a few ms of work) */
 #define DIAG(i) ((i) * (ATT_N + 1))
 
 /* The states cut for a heading reset or cap, and for a saturated gyroscope (the rates and
@@ -201,9 +201,12 @@ static int heading_decorrelated(const double *P)
     return 1;
 }
 
-/* dx = c - x_pred (angles as a rotation at x_pred, qp its quaternion), c first brought into
- * x_pred's Euler representation. */
-static void difference(run_t *r, chain_t *c, const double xp[ATT_N], const double qp[4], double dx[ATT_N])
+/* dx = c - x_pred, c first brought into x_pred's Euler representation. rotation: the angles
+ * as a rotation at x_pred (qp its quaternion; angle_difference: bounded where roll and heading
+ * are not separately defined), else in the state's coordinates, phi and psi wrapped (a
+ * heading difference then has no roll or pitch component at all). */
+static void difference(run_t *r, chain_t *c, const double xp[ATT_N], const double qp[4], int rotation,
+                       double dx[ATT_N])
 {
     int i;
     if (align_branch(c, xp)) {
@@ -212,7 +215,12 @@ static void difference(run_t *r, chain_t *c, const double xp[ATT_N], const doubl
     for (i = 0; i < ATT_N; ++i) {
         dx[i] = c->x[i] - xp[i];
     }
-    angle_difference(&xp[ATT_PHI], qp, &c->x[ATT_PHI], r->gimbal_limit, &dx[ATT_PHI]);
+    if (rotation) {
+        angle_difference(&xp[ATT_PHI], qp, &c->x[ATT_PHI], r->gimbal_limit, &dx[ATT_PHI]);
+    } else {
+        dx[ATT_PHI] = wrap_pi(dx[ATT_PHI]);
+        dx[ATT_PSI] = wrap_pi(dx[ATT_PSI]);
+    }
 }
 
 /* One backward step over trace T (the prediction from epoch k to k+1; c the smoothed epoch
@@ -243,8 +251,11 @@ static void backward_step(run_t *r, const att_trace_t *T, unsigned event, unsign
         r->rep->rate_cuts++;
     }
     euler_quat(&xp[ATT_PHI], qp);
-    difference(r, &c->full, xp, qp, dx_full);
-    difference(r, &c->tilt, xp, qp, dx_tilt);
+    /* the full recursion compares rotations; the tilt recursion, whose heading is cut,
+     * compares in Euler coordinates, where the heading difference has no tilt component
+     * (docs/derivation.md, "Smoother") */
+    difference(r, &c->full, xp, qp, 1, dx_full);
+    difference(r, &c->tilt, xp, qp, 0, dx_tilt);
     if (rts_gain(ATT_N, Pf, F, Pp, cut, &g_full) != RTS_OK) {
         r->rep->not_pd++;
     }
