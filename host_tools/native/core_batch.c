@@ -206,9 +206,13 @@ PyObject *core_filter_smooth(core_filter_obj *self, PyObject *const *args, Py_ss
         return NULL;
     }
     ctx.callback = args[RUN_NARGS + 1];
+    buf.ckpt[0] = self->f; /* the filter as it was: put back if the run is stopped */
     self->busy = 1;
     Py_BEGIN_ALLOW_THREADS
     stopped = smooth_run(&self->f, &self->frame, (size_t)n, &io, &buf, call_progress, &ctx, &rep);
+    if (stopped) {
+        self->f = buf.ckpt[0]; /* the first checkpoint is the filter before the run */
+    }
     Py_END_ALLOW_THREADS
     self->busy = 0;
     free_buffers(&buf);

@@ -270,26 +270,32 @@ static void backward_step(run_t *r, const att_trace_t *T, unsigned event, unsign
 }
 
 /* The smoothed epoch's attitude (tilt from the tilt recursion, heading from the full one, in
- * one Euler representation) and its covariance of roll, pitch, yaw, packed like
+ * the tilt's Euler representation) and its covariance of roll, pitch, yaw, packed like
  * att_get_angle_covariance: the variances of the recursion each angle comes from and the
  * full recursion's correlations. */
 static void smoothed_attitude(const carry_t *c, double x[ATT_N], double cov[6])
 {
     static const int row[6] = {0, 1, 2, 0, 0, 1}, col[6] = {0, 1, 2, 1, 2, 2};
-    chain_t full = c->full;
-    double sd[3];
-    int k;
-    (void)align_branch(&full, c->tilt.x);
+    const double *P = c->full.P;
+    double full[ATT_N], alt[ATT_N], sd[3];
+    int k, flip;
+    memcpy(full, c->full.x, sizeof full);
+    memcpy(alt, full, sizeof alt);
+    other_branch(alt, NULL);
+    flip = euler_distance(alt, c->tilt.x) < euler_distance(full, c->tilt.x);
     memcpy(x, c->tilt.x, sizeof(double) * ATT_N);
-    x[ATT_PSI] = full.x[ATT_PSI];
+    x[ATT_PSI] = flip ? alt[ATT_PSI] : full[ATT_PSI];
     sd[0] = sqrt(fmax(c->tilt.P[DIAG(ATT_PHI)], 0.0));
     sd[1] = sqrt(fmax(c->tilt.P[DIAG(ATT_THETA)], 0.0));
-    sd[2] = sqrt(fmax(full.P[DIAG(ATT_PSI)], 0.0));
+    sd[2] = sqrt(fmax(P[DIAG(ATT_PSI)], 0.0));
     for (k = 0; k < 6; ++k) {
         const int i = ATT_PHI + row[k], j = ATT_PHI + col[k];
-        const double vi = full.P[DIAG(i)], vj = full.P[DIAG(j)];
+        const double vi = P[DIAG(i)], vj = P[DIAG(j)];
+        /* the other representation negates theta: its correlations change sign */
+        const double sign = (flip && (row[k] == 1) != (col[k] == 1)) ? -1.0 : 1.0;
         cov[k] = (k < 3) ? sd[k] * sd[k]
-                         : ((vi > 0.0 && vj > 0.0) ? full.P[i * ATT_N + j] / sqrt(vi * vj) * sd[row[k]] * sd[col[k]] : 0.0);
+                         : ((vi > 0.0 && vj > 0.0) ? sign * P[i * ATT_N + j] / sqrt(vi * vj) * sd[row[k]] * sd[col[k]]
+                                                   : 0.0);
     }
 }
 
