@@ -11,9 +11,11 @@
  *                  state's size and layout tag, and the Settings type (an att_settings_t
  *                  set and read by table index through att_setting_set / att_setting_get);
  *   core_filter.c  the Core type: one att_ekf_t, its per-sample update (the fast path of
- *                  Filter.update), the batch runner over arrays (the C loop of
- *                  Filter.update_batch), reset, and the state as bytes.
- * core_io.c does the plain-C part of both (inputs, mounting, output frame, alignment).
+ *                  Filter.update), reset, and the state as bytes;
+ *   core_batch.c   its batch calls: the runner over arrays (the C loop of
+ *                  Filter.update_batch) and the smoother (Filter.smooth_batch).
+ * core_io.c does the plain-C part of them (inputs, mounting, output frame, alignment);
+ * smooth_att.c and rts.c are the smoother (plain C).
  *
  * CMake compiles these files once per scalar build with CORE_MODULE set to the module's
  * name and CORE_LAYOUT to a digest of the estimator's headers (a state saved by another

@@ -40,7 +40,8 @@ typedef struct {
     att_trace_t *trace;   /* [seg_len]: the traces of one segment */
     size_t *trace_sample; /* [seg_len]: the sample of each trace */
     uint8_t *trace_event; /* [seg_len]: SMOOTH_EVENT_* of each trace's step */
-    att_ekf_t *ckpt;      /* [smooth_checkpoints(n, seg_len)]: the filter at each segment's start */
+    att_ekf_t *ckpt;      /* [smooth_checkpoints(n, seg_len)]: the filter at each segment's start
+                             (ckpt[0]: the filter as it was before the run) */
 } smooth_buffers_t;
 
 /* What the backward pass met (counts over the recording). */
