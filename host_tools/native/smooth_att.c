@@ -366,9 +366,9 @@ static void forward_outputs(run_t *r, const att_ekf_t *f, size_t i, ekf_status_t
     }
 }
 
-/* The samples [i0, i1) through f with traces into the buffer (from its start); count: the
- * traces. first: the forward pass (also writes the filter's outputs). */
-static int run_segment(run_t *r, att_ekf_t *f, size_t i0, size_t i1, int first, size_t *count)
+/* The samples [i0, i1) through f, with their traces into the buffer (from its start) when
+ * traced; count: the traces. first: the forward pass (also writes the filter's outputs). */
+static int run_segment(run_t *r, att_ekf_t *f, size_t i0, size_t i1, int first, int traced, size_t *count)
 {
     const smooth_buffers_t *b = r->buf;
     size_t i, cnt = 0;
@@ -378,9 +378,10 @@ static int run_segment(run_t *r, att_ekf_t *f, size_t i0, size_t i1, int first, 
         ekf_status_t st;
         const att_diag_t *d = att_diag(f);
         const uint32_t resets = d->heading_resets, saturated = d->gyro_saturated;
+        att_trace_t *tr = traced ? &b->trace[cnt] : NULL;
         core_run_sample(r->fr, r->io, i, &s);
-        st = att_step_traced(f, &s, &rep, &b->trace[cnt]);
-        if (b->trace[cnt].predicted) {
+        st = att_step_traced(f, &s, &rep, tr);
+        if (tr != NULL && tr->predicted) {
             /* every magnetometer sample of an aligned filter is counted as fused, gated or skipped */
             const int no_mag = d->mag_fused == 0u && d->mag_gated == 0u && d->mag_skipped == 0u;
             b->trace_sample[cnt] = i;
@@ -438,10 +439,11 @@ int smooth_run(att_ekf_t *f, const core_frame_t *fr, size_t n, const core_run_io
     r.ctx = ctx;
     r.pending = 0;
     r.rep = report;
-    /* forward: checkpoints, the filter's outputs, the last segment's traces */
+    /* forward: checkpoints, the filter's outputs, the last segment's traces (the earlier
+     * segments' are recomputed in the backward pass: not traced here) */
     for (seg = 0; seg < segments; ++seg) {
         buf->ckpt[seg] = *f;
-        if (run_segment(&r, f, seg * L, (seg + 1 < segments) ? (seg + 1) * L : n, 1, &count)) {
+        if (run_segment(&r, f, seg * L, (seg + 1 < segments) ? (seg + 1) * L : n, 1, seg + 1 == segments, &count)) {
             return 1;
         }
     }
@@ -458,7 +460,7 @@ int smooth_run(att_ekf_t *f, const core_frame_t *fr, size_t n, const core_run_io
     for (seg = segments; seg-- > 0;) {
         if (seg + 1 < segments) {
             att_ekf_t g = buf->ckpt[seg];
-            (void)run_segment(&r, &g, seg * L, (seg + 1) * L, 0, &count);
+            (void)run_segment(&r, &g, seg * L, (seg + 1) * L, 0, 1, &count);
             report->recomputed += (uint32_t)L;
         }
         if (smooth_segment(&r, count, &c)) {
