@@ -4,6 +4,7 @@ Striebel pass backward; docs/host_tools.md, "Smoothing"), printed as a Markdown 
 commit and the machine. Not a test: nothing is asserted.
 
     .venv/bin/python scripts/bench_smooth.py [--trials 02,07] [--repeat 5] [--hours 1] [--rate 1000]
+                                             [--segment N]
 
 1. BROAD (ATTEKF_BROAD_DIR or ../shared/data/broad; skipped with a note when absent): every
    trial (or --trials), 9D, --repeat runs each of attekf.smooth and attekf.estimate; the rate is
@@ -12,7 +13,9 @@ commit and the machine. Not a test: nothing is asserted.
    run of the sum over the trials, and the wall time of the whole smooth() call.
 2. A long recording: --hours of the simulator's random motion (attekf.sim) at --rate Hz, one
    run of attekf.smooth with a progress bar; its rate, the smoother's segments and the process's
-   peak resident memory before and during the call.
+   peak resident memory before and during the call. --segment N sets the samples per segment
+   of that run (default: 64 MiB of traces; the whole recording in one segment runs the filter
+   once instead of twice, with its traces all in memory).
 """
 from __future__ import annotations
 
@@ -62,7 +65,7 @@ def broad_rows(trials, repeat: int, scalar: str):
     return len(recs), n, runs
 
 
-def long_row(hours: float, rate: float, scalar: str):
+def long_row(hours: float, rate: float, scalar: str, segment):
     import attekf
     from attekf.progress import bar
     from attekf.sim import SimConfig, simulate
@@ -70,7 +73,8 @@ def long_row(hours: float, rate: float, scalar: str):
     before = peak_rss_mib()
     t0 = time.perf_counter()
     with bar(2 * len(rec.t), f"smoothing {hours:g} h at {rate:g} Hz", False, unit="step") as pb:
-        res = attekf.smooth(rec.gyr, rec.acc, rec.mag, t=rec.t, scalar=scalar, progress=pb.update)
+        res = attekf.smooth(rec.gyr, rec.acc, rec.mag, t=rec.t, scalar=scalar, progress=pb.update,
+                            segment=segment)
     wall = time.perf_counter() - t0
     return len(rec.t), res, wall, before, peak_rss_mib()
 
@@ -103,11 +107,12 @@ def main() -> int:
     ap.add_argument("--repeat", type=int, default=5, help="runs over the BROAD trials (default 5)")
     ap.add_argument("--hours", type=float, default=1.0, help="length of the long recording, h (0: none; default 1)")
     ap.add_argument("--rate", type=float, default=1000.0, help="its sample rate, Hz (default 1000)")
+    ap.add_argument("--segment", type=int, help="samples per segment of the long run (default: the API's)")
     ap.add_argument("--scalar", default="float", choices=("float", "double", "fixed"),
                     help="the filter's build (default float)")
     args = ap.parse_args()
-    if args.repeat < 1 or args.hours < 0 or args.rate <= 0:
-        ap.error("--repeat must be >= 1, --hours >= 0, --rate > 0")
+    if args.repeat < 1 or args.hours < 0 or args.rate <= 0 or (args.segment is not None and args.segment < 1):
+        ap.error("--repeat must be >= 1, --hours >= 0, --rate > 0, --segment >= 1")
     print(f"commit {git_commit()}, {cpu_name()}, {os.cpu_count()} cores, load average "
           f"{os.getloadavg()[0]:.1f}, Python {platform.python_version()}, numpy {np.__version__}, "
           f"{args.scalar} filter\n")
@@ -122,7 +127,7 @@ def main() -> int:
             print(f"| BROAD, {trials} trials, 9D: {label} | {n:,} | {max(runs[key]) / 1e3:,.0f} | "
                   f"{statistics.median(runs[key]) / 1e3:,.0f} |")
     if args.hours > 0:
-        n, res, wall, before, during = long_row(args.hours, args.rate, args.scalar)
+        n, res, wall, before, during = long_row(args.hours, args.rate, args.scalar, args.segment)
         sm = res.smoother
         print(f"| {args.hours:g} h at {args.rate:g} Hz (simulated), 9D: attekf.smooth, C call (CPU time) | "
               f"{n:,} | {n / res.c_seconds / 1e3:,.0f} | |")
