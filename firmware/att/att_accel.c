@@ -123,7 +123,7 @@ static ekf_status_t accel_fuse(att_vars_t *v, const att_settings_t *s, const ekf
     const int learn = s->bias.motion >= 1u && (v->flags & ATT_FLAG_GIMBAL_LOCK) == 0u &&
                       !(v->accel_hf_var > ekf_sq(s->bias.quiet_accel));
     const ekf_scalar_t theta0 = v->x[ATT_THETA];
-    ekf_scalar_t u[2][3];
+    ekf_scalar_t u[2][3], up[3];
     att_trig_t t;
     ekf_innov_t info;
     ekf_status_t st, out = EKF_OK;
@@ -135,6 +135,10 @@ static ekf_status_t accel_fuse(att_vars_t *v, const att_settings_t *s, const ekf
     u[1][0] = ekf_neg(t.cth);
     u[1][1] = ekf_neg(ekf_mul(t.sphi, t.sth));
     u[1][2] = ekf_neg(ekf_mul(t.cphi, t.sth));
+    /* the predicted gravity direction (up, body frame) */
+    up[0] = ekf_neg(t.sth);
+    up[1] = ekf_mul(t.sphi, t.cth);
+    up[2] = ekf_mul(t.cphi, t.cth);
     for (i = 0; i < 2; ++i) {
         const ekf_scalar_t h3[3] = {(i == 0) ? t.cth : EKF_C(0), (i == 0) ? EKF_C(0) : EKF_C(1), EKF_C(0)};
         const int ang = (i == 0) ? ATT_PHI : ATT_THETA;
@@ -150,7 +154,7 @@ static ekf_status_t accel_fuse(att_vars_t *v, const att_settings_t *s, const ekf
         st = att_cov_update_angles(&v->cov, v->x, h3, nu, r_var, gate, s->var_floor, &info);
         if (st == EKF_OK) {
             (void)att_bias_update(&v->bias, learn, h3, pht, nu, info.variance,
-                                  ekf_add(EKF_C(1), ekf_div(excess, info.variance)), &v->x[ATT_PHI]);
+                                  ekf_add(EKF_C(1), ekf_div(excess, info.variance)), up, &v->x[ATT_PHI]);
         }
         v->diag.accel_ratio[i] = info.test_ratio;
         *bypass_failed |= (st == EKF_OK) && att_sensor_fails_gate(&info, s->accel_gate);

@@ -4,6 +4,8 @@
  */
 #include "att_bias.h"
 
+#include <stddef.h>
+
 #include "att_defs.h"
 
 /* Smallest variance of an offset component, ATT_BIAS_UNIT^2: keeps Pb positive definite
@@ -82,8 +84,19 @@ void att_bias_predict(att_bias_t *bf, const att_bias_settings_t *s, const ekf_sc
     bf->hold = ekf_max(ekf_sub(bf->hold, dt), EKF_C(0));
 }
 
+/* p <- p - (up^T p) up; r = what was taken out. */
+static void project_out(ekf_scalar_t p[3], const ekf_scalar_t up[3], ekf_scalar_t r[3])
+{
+    const ekf_scalar_t along = ekf_mac(ekf_mac(ekf_mul(up[0], p[0]), up[1], p[1]), up[2], p[2]);
+    int i;
+    for (i = 0; i < 3; ++i) {
+        r[i] = ekf_mul(along, up[i]);
+        p[i] = ekf_sub(p[i], r[i]);
+    }
+}
+
 int att_bias_update(att_bias_t *bf, int learn, const ekf_scalar_t h[3], const ekf_scalar_t pht[3], ekf_scalar_t nu,
-                    ekf_scalar_t s_var, ekf_scalar_t derate, ekf_scalar_t x_ang[3])
+                    ekf_scalar_t s_var, ekf_scalar_t derate, const ekf_scalar_t up[3], ekf_scalar_t x_ang[3])
 {
     ekf_scalar_t *const V = bf->V, *const P = bf->Pb;
     /* the measurement's sensitivity to the offset, g = -h V (V from before the update) */
@@ -91,7 +104,7 @@ int att_bias_update(att_bias_t *bf, int learn, const ekf_scalar_t h[3], const ek
     const ekf_scalar_t g1 = ekf_neg(ekf_mac(ekf_mac(ekf_mul(h[0], V[1]), h[1], V[4]), h[2], V[7]));
     const ekf_scalar_t g2 = ekf_neg(ekf_mac(ekf_mac(ekf_mul(h[0], V[2]), h[1], V[5]), h[2], V[8]));
     const ekf_scalar_t inv_s = ekf_div(EKF_C(1), s_var);
-    ekf_scalar_t u0, u1, u2, p0, p1, p2, sb, e, d0, d1, d2;
+    ekf_scalar_t u0, u1, u2, p[3], r[3] = {EKF_C(0), EKF_C(0), EKF_C(0)}, sb, e, d0, d1, d2;
     int i;
 
     /* the EKF's update moves its error's sensitivity too: V <- (I - k h) V = V + k g^T with
@@ -112,26 +125,33 @@ int att_bias_update(att_bias_t *bf, int learn, const ekf_scalar_t h[3], const ek
     u0 = ekf_mul(g0, ATT_BIAS_UNIT);
     u1 = ekf_mul(g1, ATT_BIAS_UNIT);
     u2 = ekf_mul(g2, ATT_BIAS_UNIT);
-    p0 = ekf_mac(ekf_mac(ekf_mul(P[PB_00], u0), P[PB_01], u1), P[PB_02], u2);
-    p1 = ekf_mac(ekf_mac(ekf_mul(P[PB_01], u0), P[PB_11], u1), P[PB_12], u2);
-    p2 = ekf_mac(ekf_mac(ekf_mul(P[PB_02], u0), P[PB_12], u1), P[PB_22], u2);
-    sb = ekf_mac(ekf_mac(ekf_mac(s_var, u0, p0), u1, p1), u2, p2);
+    p[0] = ekf_mac(ekf_mac(ekf_mul(P[PB_00], u0), P[PB_01], u1), P[PB_02], u2);
+    p[1] = ekf_mac(ekf_mac(ekf_mul(P[PB_01], u0), P[PB_11], u1), P[PB_12], u2);
+    p[2] = ekf_mac(ekf_mac(ekf_mul(P[PB_02], u0), P[PB_12], u1), P[PB_22], u2);
+    sb = ekf_mac(ekf_mac(ekf_mac(s_var, u0, p[0]), u1, p[1]), u2, p[2]);
     if (!(sb > EKF_C(0)) || !(s_var > EKF_C(0)) || ekf_sq(nu) > ekf_mul(EKF_C(9), sb)) {
         return 0;
     }
+    if (up != NULL) {
+        /* only the offset's component in the horizontal plane (up^T b = 0) moves: gain p' / sb
+         * with p' = p - r, r = (up^T p) up; for that gain the covariance is Joseph's,
+         * Pb - (p' p'^T + p' r^T + r p'^T) / sb (docs/derivation.md, "Gyroscope offset in
+         * motion") */
+        project_out(p, up, r);
+    }
     sb = ekf_div(EKF_C(1), sb);
     e = ekf_mul(nu, sb); /* the offset moves by p e (in ATT_BIAS_UNIT) */
-    /* Pb <- Pb - p p^T / sb (the variances kept above BIAS_VAR_MIN) */
-    P[PB_00] = ekf_max(ekf_sub(P[PB_00], ekf_mul(ekf_mul(p0, sb), p0)), BIAS_VAR_MIN);
-    P[PB_11] = ekf_max(ekf_sub(P[PB_11], ekf_mul(ekf_mul(p1, sb), p1)), BIAS_VAR_MIN);
-    P[PB_22] = ekf_max(ekf_sub(P[PB_22], ekf_mul(ekf_mul(p2, sb), p2)), BIAS_VAR_MIN);
-    P[PB_01] = ekf_sub(P[PB_01], ekf_mul(ekf_mul(p0, sb), p1));
-    P[PB_02] = ekf_sub(P[PB_02], ekf_mul(ekf_mul(p0, sb), p2));
-    P[PB_12] = ekf_sub(P[PB_12], ekf_mul(ekf_mul(p1, sb), p2));
+    /* Pb <- Pb - (p p^T + p r^T + r p^T) / sb, the variances kept above BIAS_VAR_MIN */
+    P[PB_00] = ekf_max(ekf_sub(P[PB_00], ekf_mul(ekf_mul(p[0], sb), ekf_mac(p[0], EKF_C(2), r[0]))), BIAS_VAR_MIN);
+    P[PB_11] = ekf_max(ekf_sub(P[PB_11], ekf_mul(ekf_mul(p[1], sb), ekf_mac(p[1], EKF_C(2), r[1]))), BIAS_VAR_MIN);
+    P[PB_22] = ekf_max(ekf_sub(P[PB_22], ekf_mul(ekf_mul(p[2], sb), ekf_mac(p[2], EKF_C(2), r[2]))), BIAS_VAR_MIN);
+    P[PB_01] = ekf_sub(P[PB_01], ekf_mul(sb, ekf_mac(ekf_mac(ekf_mul(p[0], p[1]), p[0], r[1]), r[0], p[1])));
+    P[PB_02] = ekf_sub(P[PB_02], ekf_mul(sb, ekf_mac(ekf_mac(ekf_mul(p[0], p[2]), p[0], r[2]), r[0], p[2])));
+    P[PB_12] = ekf_sub(P[PB_12], ekf_mul(sb, ekf_mac(ekf_mac(ekf_mul(p[1], p[2]), p[1], r[2]), r[1], p[2])));
     /* db, rad/s */
-    d0 = ekf_mul(ekf_mul(p0, e), ATT_BIAS_UNIT);
-    d1 = ekf_mul(ekf_mul(p1, e), ATT_BIAS_UNIT);
-    d2 = ekf_mul(ekf_mul(p2, e), ATT_BIAS_UNIT);
+    d0 = ekf_mul(ekf_mul(p[0], e), ATT_BIAS_UNIT);
+    d1 = ekf_mul(ekf_mul(p[1], e), ATT_BIAS_UNIT);
+    d2 = ekf_mul(ekf_mul(p[2], e), ATT_BIAS_UNIT);
     /* the angles' error was V b: take the part now known out of them, the heading only where
      * the measurement is of the heading (the magnetometer): from the accelerometer the
      * heading's share would rest on V's heading row alone, and a wrong offset would turn the

@@ -74,9 +74,11 @@ void att_bias_hold(att_bias_t *bf, ekf_scalar_t t);
  * is set, updates b and Pb from the innovation with the sensitivity g = -h V (V from before
  * the update) and the variance S derate + g Pb g^T (derate >= 1 for innovations correlated
  * across samples), unless nu is beyond 3 sigma of it (not the offset's doing), and moves the
- * angles x_ang[3] (phi, theta, psi) by -V db. Returns 1 if the offset changed. */
+ * angles x_ang[3] (phi, theta, psi) by -V db. up (unit vector, body frame, or NULL): db is
+ * kept at right angles to it (the accelerometer's: up is the gravity direction, along which
+ * an offset turns only the heading). Returns 1 if the offset changed. */
 int att_bias_update(att_bias_t *bf, int learn, const ekf_scalar_t h[3], const ekf_scalar_t pht[3], ekf_scalar_t nu,
-                    ekf_scalar_t s_var, ekf_scalar_t derate, ekf_scalar_t x_ang[3]);
+                    ekf_scalar_t s_var, ekf_scalar_t derate, const ekf_scalar_t up[3], ekf_scalar_t x_ang[3]);
 
 /* A sample at rest whose offset the rest detector averaged with weight w (0..1) of a gyro
  * with white noise gyro_var ((rad/s)^2): the residual decays with it. */

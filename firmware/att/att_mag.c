@@ -181,7 +181,7 @@ ekf_status_t att_stage_mag(att_vars_t *v, const att_settings_t *s, const ekf_sca
             /* the field's errors depend on the orientation and disturbed fields pass the
              * tests: taken at face value they would teach the vertical offset the field's
              * errors (docs/derivation.md, "Gyroscope offset in motion"), hence mag_derate */
-            (void)att_bias_update(&v->bias, s->bias.motion >= 2u, h3, pht, nu, info.variance, s->bias.mag_derate,
+            (void)att_bias_update(&v->bias, s->bias.motion >= 2u, h3, pht, nu, info.variance, s->bias.mag_derate, NULL,
                                   &v->x[ATT_PHI]);
             att_consider_heading(&v->consider, att_sensor_reduction(var0, att_cov_var(&v->cov, ATT_PSI)));
         }

@@ -163,9 +163,9 @@ extern "C" {
       "factor on the magnetometer innovations' variance in the offset's update") \
     X(motion, U16, 2, 2, 0, 2, ANY, 1, "0/1/2", \
       "learn the offset in motion: 0 no, 1 from the accelerometer, 2 and the magnetometer") \
-    X(quiet_accel, S, 1, 1, 0, 1e3, ANY, 1, "m/s^2", \
+    X(quiet_accel, S, 20, 20, 0, 1e3, ANY, 1, "m/s^2", \
       "the offset is learned in motion only while the accelerometer's short-term deviation " \
-      "from its low-pass (steps, impacts, shaking) stays below this") \
+      "from its low-pass (impacts, shaking, clipping) stays below this") \
     X(hold_time, S, 2, 2, 0, 1e3, ANY, 1, "s", \
       "no learning for this long after evidence the offset cannot explain: a gap in the samples, " \
       "a clipped accelerometer, a saturated gyroscope, a bypassed gate")

@@ -8,6 +8,8 @@ The estimator (the same C code as on the target, in the package's extension modu
     est.quaternion, est.euler, est.sigma, est.flags  # [w x y z] body->ENU; rad; rad; Flag
 
     res = attekf.estimate(gyr, acc, mag, rate_hz=100.0)   # (N, 3) arrays, one C call
+    res = attekf.smooth(gyr, acc, mag, rate_hz=100.0)     # the same, smoothed: each sample's
+                                                          # estimate given the whole recording
 
 help(attekf.Filter), help(attekf.Estimate), help(attekf.Result) and help(attekf.filter)
 explain units, frames and what is reported before the filter has aligned;
@@ -17,9 +19,9 @@ numpy only. The command-line tools (attekf --help) need extras: pip install "att
 """
 
 from .filter import (Estimate, Filter, Flag, NativeError, Result, SettingsError, default_settings,
-                     estimate, load_settings, setting_info)
+                     estimate, load_settings, setting_info, smooth)
 
 __version__ = "0.1.0"
 
-__all__ = ["Filter", "Estimate", "estimate", "Result", "Flag", "default_settings", "setting_info",
+__all__ = ["Filter", "Estimate", "estimate", "smooth", "Result", "Flag", "default_settings", "setting_info",
            "load_settings", "SettingsError", "NativeError", "__version__"]

@@ -61,8 +61,12 @@ DEFAULT_DATA = os.environ.get("ATTEKF_BROAD_DIR") or os.path.normpath(
 SCHEMA_VERSION = 1
 M_KEYS = ("total", "heading", "inclination")
 
+# The families of our estimator: the filter, and the filter with its smoother (same settings).
+OURS = ("ours", "ours-smooth")
+
 COST_NOTES = {
     "ours": "C calls only (attekf_run over whole blocks, ctypes set-up excluded)",
+    "ours-smooth": "C call only (the filter forward and its smoother backward, one call)",
     "vqf": "one C++ batch call (Cython wrapper) over the recording",
     "fusion": "per-sample Python calls into the C library (Ahrs, and Bias unless fusion-bare; "
               "includes the binding's overhead, ~1 us per call)",
@@ -107,6 +111,10 @@ class Method:
 BASE_METHODS: List[Method] = [
     Method("ours-9d", "ours", False, "this EKF, 9D (C binding)"),
     Method("ours-6d", "ours", True, "this EKF, 6D (C binding, no magnetometer)"),
+    Method("ours-smooth-9d", "ours-smooth", False, "this EKF and its Rauch-Tung-Striebel smoother (offline) 9D",
+           default=False),
+    Method("ours-smooth-6d", "ours-smooth", True, "this EKF and its Rauch-Tung-Striebel smoother (offline) 6D",
+           default=False),
     Method("vqf-9d", "vqf", False, "VQF offline 9D"),
     Method("vqf-6d", "vqf", True, "VQF offline 6D"),
     Method("vqf-online-9d", "vqf", False, "VQF online (causal) 9D", default=False),
@@ -257,7 +265,8 @@ def run_ours_arrays(rec: Recording, m: Method, cfg: RunConfig):
         bias = oracle_gyro_bias(rec)
         gyr = rec.gyr - bias
         extra["oracle_gyro_bias_rad_s"] = bias.tolist()
-    res = native.run_arrays(rec.t, gyr, rec.acc, None if m.six_d else rec.mag, settings, cfg.scalar)
+    res = native.run_arrays(rec.t, gyr, rec.acc, None if m.six_d else rec.mag, settings, cfg.scalar,
+                            smooth=m.family == "ours-smooth")
     q = res.quat.copy()
     q[~res.aligned] = np.nan
     cov = res.angle_cov.copy()
@@ -287,7 +296,7 @@ def missing_packages(methods: Sequence[Method]) -> Dict[str, str]:
     return out
 
 
-RUNNERS: Dict[str, Callable] = {"ours": _run_ours, "vqf": _run_vqf, "fusion": _run_fusion,
+RUNNERS: Dict[str, Callable] = {"ours": _run_ours, "ours-smooth": _run_ours, "vqf": _run_vqf, "fusion": _run_fusion,
                                 "madgwick": _run_ahrs, "mahony": _run_ahrs}
 
 
@@ -307,7 +316,7 @@ def run_method(rec: Recording, m: Method, cfg: RunConfig) -> Tuple[np.ndarray, f
     why = None if m.six_d else mag_usable(rec)
     if why:
         raise ValueError(f"{rec.source}: {m.key} needs a magnetometer: {why}")
-    if m.family == "ours":
+    if m.family in OURS:
         return _run_ours(rec, m, cfg)
     feed, slots = regular_feed(rec)
     q, sec, extra = RUNNERS[m.family](feed, m, cfg)
@@ -478,7 +487,7 @@ def run_benchmark(trial_paths: List[str], methods: List[Method], cfg: RunConfig,
         if why and any(not m.six_d for m in methods):
             not_run[(t, "9D")] = why
     # slow methods first so that the pool does not end on one long task
-    order = {"madgwick": 0, "mahony": 0, "fusion": 1, "ours": 2, "vqf": 3}
+    order = {"madgwick": 0, "mahony": 0, "fusion": 1, "ours": 2, "ours-smooth": 2, "vqf": 3}
     tasks = [(p, m.key, cfg) for m in sorted(methods, key=lambda m: order[m.family])
              for p, t in zip(trial_paths, trials) if (t, m.dim) not in not_run]
     tasks.sort(key=lambda t: (order[all_methods(cfg)[t[1]].family], t[0]))
@@ -498,7 +507,7 @@ def run_benchmark(trial_paths: List[str], methods: List[Method], cfg: RunConfig,
                 progress(1)
     wall = time.perf_counter() - t_wall
     ours_settings = None
-    if any(m.family == "ours" for m in methods):
+    if any(m.family in OURS for m in methods):
         ours_settings = native.default_settings(cfg.scalar)
         ours_settings.update(cfg.settings)
     result = {
@@ -526,7 +535,7 @@ def run_benchmark(trial_paths: List[str], methods: List[Method], cfg: RunConfig,
                       "vqf": {"params": "defaults", "offline": True},
                       "init": f"mean acc/mag of the first {cfg.init_samples} samples "
                               "(Madgwick, Mahony, Fusion); VQF and ours initialise themselves"},
-        "library": (display_path(str(native.load(cfg.scalar).path)) if any(m.family == "ours" for m in methods)
+        "library": (display_path(str(native.load(cfg.scalar).path)) if any(m.family in OURS for m in methods)
                     else None),
         "packages": package_versions(),
         "machine": dict(machine_info(), jobs=jobs),

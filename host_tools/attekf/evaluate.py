@@ -135,12 +135,13 @@ def _score(rec: Recording, name: str, estimator: str, euler_est: np.ndarray,
 
 
 def evaluate_run(rec: Recording, settings: Optional[Dict[str, float]] = None, scalar: str = "float",
-                 use_mag: bool = True, six_d: Optional[bool] = None, progress=None):
-    """Runs the C estimator over rec and scores it. Returns (TrialEval, native.Result).
-    six_d defaults to 'no magnetometer used'. Samples before alignment have no estimate."""
+                 use_mag: bool = True, six_d: Optional[bool] = None, progress=None, smooth: bool = False):
+    """Runs the C estimator over rec (smooth: and its smoother) and scores it. Returns
+    (TrialEval, native.Result). six_d defaults to 'no magnetometer used'. Samples before
+    alignment have no estimate."""
     from . import native  # the binding needs the built library; import only when used
 
-    res = native.run_estimator(rec, settings, scalar=scalar, use_mag=use_mag, progress=progress)
+    res = native.run_estimator(rec, settings, scalar=scalar, use_mag=use_mag, progress=progress, smooth=smooth)
     euler = res.euler.copy()
     var = res.var_euler.copy()
     not_aligned = ~res.aligned
@@ -151,7 +152,8 @@ def evaluate_run(rec: Recording, settings: Optional[Dict[str, float]] = None, sc
         six_d = not mag_used
     summary = res.summary()
     counts = {"not_aligned": int(not_aligned.sum()), "refused": int(summary["samples_refused"])}
-    estimator = f"C estimator ({scalar}, binding){'' if mag_used else ', no magnetometer'}"
+    estimator = (f"C estimator ({scalar}, binding){', smoothed' if smooth else ''}"
+                 f"{'' if mag_used else ', no magnetometer'}")
     cov = None
     if res.angle_cov is not None:
         cov = res.angle_cov.copy()

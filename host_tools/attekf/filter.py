@@ -8,6 +8,7 @@
 
     res = attekf.estimate(gyr, acc, mag, rate_hz=100.0)   # (N, 3) arrays, one C call
     res.quat, res.euler, res.sigma_euler
+    res = attekf.smooth(gyr, acc, mag, rate_hz=100.0)     # the same, each sample given all of them
 
 Units and frames (those of the C estimator):
   * inputs in the body frame: gyroscope rad/s, accelerometer m/s^2 (specific force, +9.81
@@ -50,7 +51,7 @@ from .native import NativeError, SettingsError
 from .results import Estimate, Flag, Result
 from .settings_file import load_settings
 
-__all__ = ["Filter", "Estimate", "estimate", "default_settings", "setting_info", "load_settings",
+__all__ = ["Filter", "Estimate", "estimate", "smooth", "default_settings", "setting_info", "load_settings",
            "Flag", "Result", "SettingsError", "NativeError"]
 
 ArrayLike3 = Union[Sequence[float], np.ndarray]
@@ -225,6 +226,44 @@ class Filter:
             times = np.concatenate(([0.0], np.cumsum(steps[1:]))) if n else np.zeros(0)
         return self._run(times, steps, gyr, acc, mag, t is not None, progress)
 
+    def smooth_batch(self, gyr: np.ndarray, acc: np.ndarray, mag: Optional[np.ndarray] = None, *,
+                     t: Optional[np.ndarray] = None, rate_hz: Optional[float] = None,
+                     dt: Union[None, float, np.ndarray] = None, progress=None,
+                     segment: Optional[int] = None) -> Result:
+        """update_batch, then the Rauch-Tung-Striebel smoother over those samples
+        (docs/derivation.md, "Smoother"): the same arguments, and a Result whose attitude,
+        state, variances and covariance are the smoothed estimate, each sample's given all N
+        samples (flags, status, gyro_bias: the filter's). The filter ends as update_batch would
+        leave it. progress(k), if given, is called with the samples done, 2 N in all (the
+        forward pass, then the backward pass). segment: samples per segment of the smoother's
+        memory (default: 64 MiB of traces; docs/host_tools.md, "Smoothing")."""
+        gyr = native.rows3("gyr", gyr, "rad/s")
+        n = gyr.shape[0]
+        acc = native.rows3("acc", acc, "m/s^2", n)
+        mag = None if mag is None else native.rows3("mag", mag, "uT", n)
+        if t is None and rate_hz is None and dt is None:
+            if self._dt is None:
+                raise ValueError("give t (timestamps, s), rate_hz (Hz) or dt (s), or Filter(dt=...)")
+            dt = self._dt
+        steps = native.time_steps(n, t=t, rate_hz=rate_hz, dt=dt, t_prev=self._t_last, first=self._dt)
+        if t is not None:
+            times = np.ascontiguousarray(t, dtype=np.float64)
+        elif rate_hz is not None:
+            times = np.arange(n) / float(rate_hz)
+        else:
+            times = np.concatenate(([0.0], np.cumsum(steps[1:]))) if n else np.zeros(0)
+        return self._run(times, steps, gyr, acc, mag, t is not None, progress, _segment(segment))
+
+    def smooth_recording(self, rec, use_mag: bool = True, progress=None, segment: Optional[int] = None) -> Result:
+        """run_recording with the smoother (smooth_batch)."""
+        n = len(rec.t)
+        gyr = native.rows3("gyr", rec.gyr, "rad/s", n, layout_known=True)
+        acc = native.rows3("acc", rec.acc, "m/s^2", n, layout_known=True)
+        mag = native.rows3("mag", rec.mag, "uT", n, layout_known=True) if use_mag and rec.mag is not None else None
+        steps = native.time_steps(n, t=rec.t, t_prev=self._t_last, first=self._dt or (1.0 if n == 1 else None))
+        return self._run(np.ascontiguousarray(rec.t, dtype=np.float64), steps, gyr, acc, mag, True, progress,
+                         _segment(segment))
+
     def run_recording(self, rec, use_mag: bool = True, progress=None) -> Result:
         """update_batch over a recording read by attekf.io.read_recording (its timestamps;
         use_mag=False: as if it had no magnetometer). progress(k) as in update_batch."""
@@ -235,8 +274,15 @@ class Filter:
         steps = native.time_steps(n, t=rec.t, t_prev=self._t_last, first=self._dt or (1.0 if n == 1 else None))
         return self._run(np.ascontiguousarray(rec.t, dtype=np.float64), steps, gyr, acc, mag, True, progress)
 
-    def _run(self, times, steps, gyr, acc, mag, timestamps: bool, progress) -> Result:
-        res = native.run_core(self._lib, self._core, times, steps, gyr, acc, mag, progress, self._frame)
+    def _run(self, times, steps, gyr, acc, mag, timestamps: bool, progress, segment: Union[None, bool, int] = False
+             ) -> Result:
+        """The batch on the Core; segment False: the filter alone, else the smoother with that
+        segment length (None: the default)."""
+        if segment is False:
+            res = native.run_core(self._lib, self._core, times, steps, gyr, acc, mag, progress, self._frame)
+        else:
+            res = native.smooth_core(self._lib, self._core, times, steps, gyr, acc, mag, progress, self._frame,
+                                     segment)
         self._t_last = float(times[-1]) if (timestamps and len(times)) else None
         return res
 
@@ -326,6 +372,38 @@ def estimate(gyr: np.ndarray, acc: np.ndarray, mag: Optional[np.ndarray] = None,
     if with_6d:
         res.six_d = run(None)
     return res
+
+
+def smooth(gyr: np.ndarray, acc: np.ndarray, mag: Optional[np.ndarray] = None, *,
+           t: Optional[np.ndarray] = None, rate_hz: Optional[float] = None,
+           dt: Union[None, float, np.ndarray] = None, settings: Optional[Settings] = None,
+           scalar: str = "float", frame: str = "ENU", mounting=None, with_6d: bool = False,
+           progress=None, segment: Optional[int] = None) -> Result:
+    """The estimate of every sample given the whole recording: estimate's arguments and result,
+    from the filter (exactly the one estimate runs, any scalar build) and its Rauch-Tung-
+    Striebel smoother in double precision (Filter.smooth_batch; docs/derivation.md,
+    "Smoother"). quat, euler, sigma_euler, cov_euler, rate, state and var are smoothed; flags,
+    status, diag and gyro_bias are the filter's. progress(k): called with the samples done
+    (2 N per filter: forward, then backward; with_6d runs two). segment: samples per segment of
+    the smoother's memory (default: 64 MiB of traces)."""
+    def run(m):
+        return Filter(settings, scalar, frame=frame, mounting=mounting).smooth_batch(
+            gyr, acc, m, t=t, rate_hz=rate_hz, dt=dt, progress=progress, segment=segment)
+    if with_6d and mag is None:
+        raise ValueError("with_6d: without a magnetometer (mag=None) the result is 6D already")
+    res = run(mag)
+    if with_6d:
+        res.six_d = run(None)
+    return res
+
+
+def _segment(segment) -> Optional[int]:
+    """The smoother's segment length: None (the default) or a whole number >= 1 of samples."""
+    if segment is None:
+        return None
+    if isinstance(segment, bool) or not isinstance(segment, (int, np.integer)) or segment < 1:
+        raise ValueError(f"segment: {segment!r} is not a whole number of samples >= 1")
+    return int(segment)
 
 
 def default_settings(scalar: str = "float") -> dict:

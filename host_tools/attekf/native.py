@@ -32,7 +32,7 @@ import numpy as np
 
 from .results import ATT_FLAGS, Estimate, Flag, Result, STATE_NAMES  # noqa: F401 (re-exported)
 
-API_VERSION = 3
+API_VERSION = 4
 SCALARS = {"float": "f", "double": "d", "fixed": "x"}  # fixed: Q-format (docs/fixed_point.md)
 N_STATES = len(STATE_NAMES)
 
@@ -359,6 +359,44 @@ def run_core(lib: Library, core, t: np.ndarray, dt: np.ndarray, gyr: np.ndarray,
                   c_seconds=c_seconds, status_columns=lib.status_columns, **out)
 
 
+# The smoother's memory: the traces of one segment (docs/derivation.md, "Smoother"; the
+# checkpoints, one filter per segment, are small beside them).
+SMOOTH_SEGMENT_BYTES = 64 << 20
+
+
+def smooth_segment(lib: Library, segment_bytes: int = SMOOTH_SEGMENT_BYTES) -> int:
+    """Samples per segment of the smoother for a trace buffer of segment_bytes."""
+    return max(1, int(segment_bytes) // int(lib.module.TRACE_SIZE))
+
+
+def smooth_core(lib: Library, core, t: np.ndarray, dt: np.ndarray, gyr: np.ndarray, acc: np.ndarray,
+                mag: Optional[np.ndarray], progress: Optional[Callable[[int], None]] = None,
+                frame: str = "ENU", segment: Optional[int] = None) -> Result:
+    """The filter over checked arrays on the Core (as run_core), then its Rauch-Tung-Striebel
+    smoother: a Result whose attitude, state, variances and covariance are the smoothed ones
+    (flags, status, gyroscope offset: the filter's). progress(k) is called with the samples
+    done, 2 N in all (the forward pass, then the backward pass); segment: samples per segment
+    (default: SMOOTH_SEGMENT_BYTES of traces). res.smoother holds the smoother's counts."""
+    n = dt.shape[0]
+    out = {"state": np.empty((n, N_STATES)), "var": np.empty((n, N_STATES)), "quat": np.empty((n, 4)),
+           "euler": np.empty((n, 3)), "angle_cov": np.empty((n, 6)), "flags": np.empty(n, np.uint32),
+           "status": np.empty((n, len(lib.status_columns)), np.uint8), "gyro_bias": np.empty((n, 3)),
+           "gyro_bias_sigma": np.empty((n, 3))}
+    order = ("state", "var", "quat", "euler", "angle_cov", "flags", "status", "gyro_bias", "gyro_bias_sigma")
+    seg = smooth_segment(lib) if segment is None else int(segment)
+    t0 = time.process_time()
+    counts = core.smooth(dt, gyr, acc, mag, *(out[k] for k in order), seg, progress)
+    c_seconds = time.process_time() - t0
+    codes = np.flatnonzero(np.bincount(out["status"].ravel(), minlength=1))
+    mag_absent = n if mag is None else int(np.all(np.isnan(mag), axis=1).sum())
+    res = Result(t=t, scalar=lib.scalar, frame=frame, settings=lib.settings_dict(core.settings()),
+                 diag=dict(zip(lib.diag_names, core.diag())), diag_values=_diag_values(lib, core),
+                 status_names={int(c): lib.status_name(int(c)) for c in codes}, mag_absent=mag_absent,
+                 c_seconds=c_seconds, status_columns=lib.status_columns, **out)
+    res.smoother = dict(counts, segment=seg)
+    return res
+
+
 def _diag_values(lib: Library, core) -> Dict[str, Union[float, tuple]]:
     """The other diagnostics of att_diag_t (test ratios, norm and dip errors), by name: a float,
     or a tuple for an array field."""
@@ -373,10 +411,11 @@ def _diag_values(lib: Library, core) -> Dict[str, Union[float, tuple]]:
 
 def run_arrays(t: np.ndarray, gyr: np.ndarray, acc: np.ndarray, mag: Optional[np.ndarray] = None,
                settings: Optional[Dict[str, float]] = None, scalar: str = "float",
-               progress: Optional[Callable[[int], None]] = None) -> Result:
+               progress: Optional[Callable[[int], None]] = None, smooth: bool = False) -> Result:
     """Runs the C estimator on arrays: t (N,) s, gyr/acc/mag (N, 3) (mag None or all-NaN rows
     for no magnetometer). One C call, or blocks when progress(k) is given: it is called with
-    the number of samples just done."""
+    the number of samples just done. smooth: the filter and its smoother (smooth_core;
+    progress then counts 2 N)."""
     lib = load(scalar)
     t = np.ascontiguousarray(t, dtype=np.float64)
     n = t.shape[0]
@@ -385,13 +424,14 @@ def run_arrays(t: np.ndarray, gyr: np.ndarray, acc: np.ndarray, mag: Optional[np
     mag = None if mag is None else rows3("mag", mag, "uT", n, layout_known=True)
     core = lib.new_core(lib.make_settings(settings))
     # the first step of a new filter is an alignment sample's, which the filter does not use
-    return run_core(lib, core, t, time_steps(n, t=t, first=1.0 if n == 1 else None), gyr, acc, mag, progress)
+    steps = time_steps(n, t=t, first=1.0 if n == 1 else None)
+    return (smooth_core if smooth else run_core)(lib, core, t, steps, gyr, acc, mag, progress)
 
 
 def run_estimator(recording, settings: Optional[Dict[str, float]] = None,
                   scalar: str = "float", use_mag: bool = True,
-                  progress: Optional[Callable[[int], None]] = None) -> Result:
+                  progress: Optional[Callable[[int], None]] = None, smooth: bool = False) -> Result:
     """Runs the C estimator over a recording (attekf.io.Recording; use_mag=False: as if it had
-    no magnetometer)."""
+    no magnetometer); smooth: and its smoother (run_arrays)."""
     return run_arrays(recording.t, recording.gyr, recording.acc,
-                      recording.mag if use_mag else None, settings, scalar, progress)
+                      recording.mag if use_mag else None, settings, scalar, progress, smooth)

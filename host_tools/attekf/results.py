@@ -123,6 +123,8 @@ class Result:
                without Python set-up (`attekf bench` per-sample cost)
     six_d    with attekf.estimate(..., with_6d=True): the same samples without the
              magnetometer (a Result), else None
+    smoother from attekf.smooth: the smoother's counts (epochs, heading_cuts, rate_cuts,
+             not_pd, branch_flips, recomputed, segment), else None
     """
 
     t: np.ndarray
@@ -145,6 +147,7 @@ class Result:
     diag_values: Dict[str, Union[float, tuple]] = field(default_factory=dict)
     status_columns: Tuple[str, ...] = ("step", "predict", "gyro", "accel", "mag")
     six_d: Optional["Result"] = None
+    smoother: Optional[Dict[str, int]] = None
 
     def __len__(self) -> int:
         return int(self.t.shape[0])

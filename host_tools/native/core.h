@@ -11,9 +11,11 @@
  *                  state's size and layout tag, and the Settings type (an att_settings_t
  *                  set and read by table index through att_setting_set / att_setting_get);
  *   core_filter.c  the Core type: one att_ekf_t, its per-sample update (the fast path of
- *                  Filter.update), the batch runner over arrays (the C loop of
- *                  Filter.update_batch), reset, and the state as bytes.
- * core_io.c does the plain-C part of both (inputs, mounting, output frame, alignment).
+ *                  Filter.update), reset, and the state as bytes;
+ *   core_batch.c   its batch calls: the runner over arrays (the C loop of
+ *                  Filter.update_batch) and the smoother (Filter.smooth_batch).
+ * core_io.c does the plain-C part of them (inputs, mounting, output frame, alignment);
+ * smooth_att.c and rts.c are the smoother (plain C).
  *
  * CMake compiles these files once per scalar build with CORE_MODULE set to the module's
  * name and CORE_LAYOUT to a digest of the estimator's headers (a state saved by another
@@ -46,23 +48,28 @@
 #endif
 
 /* Bumped when a function or type of the module changes; native.py refuses other versions. */
-#define CORE_API_VERSION 3
+#define CORE_API_VERSION 4
 
-/* Columns of the per-sample status array of Core.run (status[i * CORE_STATUS_COLS + k]). */
-enum {
-    CORE_STATUS_STEP = 0, /* att_step's return value */
-    CORE_STATUS_PREDICT = 1, /* att_step_report_t fields */
-    CORE_STATUS_GYRO = 2,
-    CORE_STATUS_ACCEL = 3,
-    CORE_STATUS_MAG = 4,
-    CORE_STATUS_COLS = 5
-};
+/* The per-sample status array of Core.run: CORE_STATUS_* columns (core_io.h). */
 
 /* An att_settings_t as a Python object (attekf.native keeps one per Filter). */
 typedef struct {
     PyObject_HEAD
     att_settings_t s;
 } core_settings_obj;
+
+/* The Core type's object (core_filter.c; its batch calls in core_batch.c). */
+typedef struct {
+    PyObject_HEAD
+    att_ekf_t f;
+    core_frame_t frame;
+    double dt;                  /* s, default step of update(); 0: none */
+    int busy;                   /* a batch runs on f without the GIL */
+    PyTypeObject *estimate_type; /* attekf.Estimate (a tuple subclass), set by bind() */
+    PyObject *flag_type;        /* attekf.Flag */
+    PyObject *flag_cache;       /* dict: flag bits -> Flag */
+    PyObject *status_names;     /* tuple: ekf_status_t -> name */
+} core_filter_obj;
 
 extern PyTypeObject core_settings_type;
 extern PyTypeObject core_filter_type;
@@ -76,5 +83,12 @@ extern PyTypeObject core_filter_type;
 /* Every counter of att_diag(f) (counters != 0: a tuple of ints) or every other diagnostic
  * (a tuple of floats, an array field element by element), in the order of diag_tables(). */
 PyObject *core_diag_values(const att_ekf_t *f, int counters);
+
+/* 1 if no batch runs on the filter; else 0 with RuntimeError set. */
+int core_not_busy(const core_filter_obj *self);
+
+/* Core.run and Core.smooth (core_batch.c). */
+PyObject *core_filter_run(core_filter_obj *self, PyObject *const *args, Py_ssize_t nargs);
+PyObject *core_filter_smooth(core_filter_obj *self, PyObject *const *args, Py_ssize_t nargs);
 
 #endif /* CORE_H */

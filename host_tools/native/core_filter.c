@@ -1,6 +1,6 @@
 /*
  * core_filter.c - the Core type: one att_ekf_t with its per-sample update and its batch
- * runner (see core.h). attekf.Filter (filter.py) wraps it; everything a user can pass
+ * runner (see core.h; the batch calls run and smooth are in core_batch.c). attekf.Filter (filter.py) wraps it; everything a user can pass
  * wrongly to update() is checked here, because update() is called straight from Python per
  * sample.
  */
@@ -9,19 +9,8 @@
 #include <math.h>
 #include <string.h>
 
-typedef struct {
-    PyObject_HEAD
-    att_ekf_t f;
-    core_frame_t frame;
-    double dt;                  /* s, default step of update(); 0: none */
-    int busy;                   /* a batch runs on f without the GIL */
-    PyTypeObject *estimate_type; /* attekf.Estimate (a tuple subclass), set by bind() */
-    PyObject *flag_type;        /* attekf.Flag */
-    PyObject *flag_cache;       /* dict: flag bits -> Flag */
-    PyObject *status_names;     /* tuple: ekf_status_t -> name */
-} core_filter_obj;
 
-static int not_busy(const core_filter_obj *self)
+int core_not_busy(const core_filter_obj *self)
 {
     if (self->busy) {
         PyErr_SetString(PyExc_RuntimeError, "this filter is running a batch in another thread");
@@ -325,7 +314,7 @@ static PyObject *filter_update(core_filter_obj *self, PyObject *const *args, Py_
         return NULL;
     }
     if (!read3(a[0], "gyr", "rad/s", g) || !read3(a[1], "acc", "m/s^2", acc) ||
-        (a[2] != Py_None && !read3(a[2], "mag", "uT", m)) || !read_dt(self, a[3], &dt) || !not_busy(self)) {
+        (a[2] != Py_None && !read3(a[2], "mag", "uT", m)) || !read_dt(self, a[3], &dt) || !core_not_busy(self)) {
         return NULL;
     }
     core_sample(&self->frame, dt, g, acc, (a[2] != Py_None) ? m : NULL, &s);
@@ -334,139 +323,12 @@ static PyObject *filter_update(core_filter_obj *self, PyObject *const *args, Py_
 }
 
 /* ------------------------------------------------------------------------------------
- * A batch: run(dt, gyr, acc, mag, state, var, quat, euler, angle_cov, flags, status,
- *              gyro_bias, gyro_bias_sigma)
- * ------------------------------------------------------------------------------------ */
-enum { IN_DT, IN_GYR, IN_ACC, IN_MAG, OUT_STATE, OUT_VAR, OUT_QUAT, OUT_EULER, OUT_COV, OUT_FLAGS,
-       OUT_STATUS, OUT_BIAS, OUT_BIAS_SIGMA, RUN_NARGS };
-
-/* The array of argument k: C-contiguous, aligned, of the given type and shape (n, cols) or
- * (n,) for cols 0, writeable for an output; NULL for None where allowed. */
-static int run_array(PyObject *o, int k, npy_intp n, int type, npy_intp cols, void **out)
-{
-    static const char *const names[RUN_NARGS] = {"dt", "gyr", "acc", "mag", "state", "var", "quat", "euler",
-                                                 "angle_cov", "flags", "status", "gyro_bias", "gyro_bias_sigma"};
-    PyArrayObject *a = (PyArrayObject *)o;
-    const int ndim = (cols > 0) ? 2 : 1;
-    *out = NULL;
-    if (o == Py_None && k != IN_DT && k != IN_GYR && k != IN_ACC) {
-        return 1;
-    }
-    if (!PyArray_Check(o) || PyArray_TYPE(a) != type || PyArray_NDIM(a) != ndim || !PyArray_IS_C_CONTIGUOUS(a) ||
-        !PyArray_ISALIGNED(a) || PyArray_DIM(a, 0) != n || (cols > 0 && PyArray_DIM(a, 1) != cols) ||
-        (k >= OUT_STATE && !PyArray_ISWRITEABLE(a))) {
-        PyErr_Format(PyExc_ValueError, "run: %s must be a C-contiguous %s array of shape (%zd%s%zd)", names[k],
-                     (type == NPY_DOUBLE) ? "float64" : (type == NPY_UINT32) ? "uint32" : "uint8", (Py_ssize_t)n,
-                     (cols > 0) ? ", " : ",", (Py_ssize_t)cols);
-        return 0;
-    }
-    *out = PyArray_DATA(a);
-    return 1;
-}
-
-typedef struct {
-    const double *dt, *gyr, *acc, *mag;
-    double *state, *var, *quat, *euler, *cov, *bias, *bias_sigma;
-    uint32_t *flags;
-    uint8_t *status;
-} run_io_t;
-
-static void run_loop(att_ekf_t *f, const core_frame_t *fr, size_t n, const run_io_t *io)
-{
-    size_t i;
-    for (i = 0; i < n; ++i) {
-        att_sample_t s;
-        att_step_report_t rep;
-        ekf_status_t st;
-        double q[4], e[3], b[3], bs[3];
-        core_sample(fr, io->dt[i], &io->gyr[3 * i], &io->acc[3 * i], (io->mag != NULL) ? &io->mag[3 * i] : NULL, &s);
-        st = att_step(f, &s, &rep);
-        if (io->state != NULL || io->var != NULL) {
-            core_state(f, (io->state != NULL) ? &io->state[(size_t)ATT_N * i] : NULL,
-                       (io->var != NULL) ? &io->var[(size_t)ATT_N * i] : NULL);
-        }
-        if (io->quat != NULL || io->euler != NULL) {
-            core_attitude(fr, f, (io->quat != NULL) ? &io->quat[4 * i] : q, (io->euler != NULL) ? &io->euler[3 * i] : e);
-        }
-        if (io->cov != NULL) {
-            core_angle_cov(fr, f, &io->cov[6 * i]);
-        }
-        if (io->bias != NULL || io->bias_sigma != NULL) {
-            core_gyro_bias(f, (io->bias != NULL) ? &io->bias[3 * i] : b,
-                           (io->bias_sigma != NULL) ? &io->bias_sigma[3 * i] : bs);
-        }
-        if (io->flags != NULL) {
-            io->flags[i] = att_flags(f);
-        }
-        if (io->status != NULL) {
-            uint8_t *row = &io->status[(size_t)CORE_STATUS_COLS * i];
-            row[CORE_STATUS_STEP] = (uint8_t)st;
-            row[CORE_STATUS_PREDICT] = (uint8_t)rep.predict;
-            row[CORE_STATUS_GYRO] = (uint8_t)rep.gyro;
-            row[CORE_STATUS_ACCEL] = (uint8_t)rep.accel;
-            row[CORE_STATUS_MAG] = (uint8_t)rep.mag;
-        }
-    }
-}
-
-static PyObject *filter_run(core_filter_obj *self, PyObject *const *args, Py_ssize_t nargs)
-{
-    run_io_t io;
-    void *p[RUN_NARGS];
-    npy_intp n;
-    if (nargs != RUN_NARGS) {
-        PyErr_Format(PyExc_TypeError, "run() takes %d arguments (%zd given)", (int)RUN_NARGS, nargs);
-        return NULL;
-    }
-    if (!PyArray_Check(args[IN_DT]) || PyArray_NDIM((PyArrayObject *)args[IN_DT]) != 1) {
-        PyErr_SetString(PyExc_ValueError, "run: dt must be a float64 array of shape (n,)");
-        return NULL;
-    }
-    n = PyArray_DIM((PyArrayObject *)args[IN_DT], 0);
-    if (!run_array(args[IN_DT], IN_DT, n, NPY_DOUBLE, 0, &p[IN_DT]) ||
-        !run_array(args[IN_GYR], IN_GYR, n, NPY_DOUBLE, 3, &p[IN_GYR]) ||
-        !run_array(args[IN_ACC], IN_ACC, n, NPY_DOUBLE, 3, &p[IN_ACC]) ||
-        !run_array(args[IN_MAG], IN_MAG, n, NPY_DOUBLE, 3, &p[IN_MAG]) ||
-        !run_array(args[OUT_STATE], OUT_STATE, n, NPY_DOUBLE, ATT_N, &p[OUT_STATE]) ||
-        !run_array(args[OUT_VAR], OUT_VAR, n, NPY_DOUBLE, ATT_N, &p[OUT_VAR]) ||
-        !run_array(args[OUT_QUAT], OUT_QUAT, n, NPY_DOUBLE, 4, &p[OUT_QUAT]) ||
-        !run_array(args[OUT_EULER], OUT_EULER, n, NPY_DOUBLE, 3, &p[OUT_EULER]) ||
-        !run_array(args[OUT_COV], OUT_COV, n, NPY_DOUBLE, 6, &p[OUT_COV]) ||
-        !run_array(args[OUT_FLAGS], OUT_FLAGS, n, NPY_UINT32, 0, &p[OUT_FLAGS]) ||
-        !run_array(args[OUT_STATUS], OUT_STATUS, n, NPY_UINT8, CORE_STATUS_COLS, &p[OUT_STATUS]) ||
-        !run_array(args[OUT_BIAS], OUT_BIAS, n, NPY_DOUBLE, 3, &p[OUT_BIAS]) ||
-        !run_array(args[OUT_BIAS_SIGMA], OUT_BIAS_SIGMA, n, NPY_DOUBLE, 3, &p[OUT_BIAS_SIGMA]) || !not_busy(self)) {
-        return NULL;
-    }
-    io.dt = p[IN_DT];
-    io.gyr = p[IN_GYR];
-    io.acc = p[IN_ACC];
-    io.mag = p[IN_MAG];
-    io.state = p[OUT_STATE];
-    io.var = p[OUT_VAR];
-    io.quat = p[OUT_QUAT];
-    io.euler = p[OUT_EULER];
-    io.cov = p[OUT_COV];
-    io.flags = p[OUT_FLAGS];
-    io.status = p[OUT_STATUS];
-    io.bias = p[OUT_BIAS];
-    io.bias_sigma = p[OUT_BIAS_SIGMA];
-    /* the arrays stay alive (the caller holds them); the filter is guarded by busy */
-    self->busy = 1;
-    Py_BEGIN_ALLOW_THREADS
-    run_loop(&self->f, &self->frame, (size_t)n, &io);
-    Py_END_ALLOW_THREADS
-    self->busy = 0;
-    Py_RETURN_NONE;
-}
-
-/* ------------------------------------------------------------------------------------
  * Reset, settings, diagnostics, state
  * ------------------------------------------------------------------------------------ */
 static PyObject *filter_reset(core_filter_obj *self, PyObject *unused)
 {
     (void)unused;
-    if (!not_busy(self)) {
+    if (!core_not_busy(self)) {
         return NULL;
     }
     (void)att_reset(&self->f);
@@ -486,20 +348,20 @@ static PyObject *filter_settings(core_filter_obj *self, PyObject *unused)
 static PyObject *filter_diag(core_filter_obj *self, PyObject *unused)
 {
     (void)unused;
-    return not_busy(self) ? core_diag_values(&self->f, 1) : NULL;
+    return core_not_busy(self) ? core_diag_values(&self->f, 1) : NULL;
 }
 
 static PyObject *filter_diag_values(core_filter_obj *self, PyObject *unused)
 {
     (void)unused;
-    return not_busy(self) ? core_diag_values(&self->f, 0) : NULL;
+    return core_not_busy(self) ? core_diag_values(&self->f, 0) : NULL;
 }
 
 /* The filter's memory (att_ekf_t: settings and variables) as bytes. */
 static PyObject *filter_state_bytes(core_filter_obj *self, PyObject *unused)
 {
     (void)unused;
-    return not_busy(self) ? PyBytes_FromStringAndSize((const char *)&self->f, (Py_ssize_t)sizeof self->f) : NULL;
+    return core_not_busy(self) ? PyBytes_FromStringAndSize((const char *)&self->f, (Py_ssize_t)sizeof self->f) : NULL;
 }
 
 /* 1 if what a state's bytes hold can be a filter of this build: settings that pass
@@ -526,7 +388,7 @@ static PyObject *filter_load_state(core_filter_obj *self, PyObject *arg)
 {
     att_ekf_t f;
     Py_buffer view;
-    if (!not_busy(self) || PyObject_GetBuffer(arg, &view, PyBUF_SIMPLE) < 0) {
+    if (!core_not_busy(self) || PyObject_GetBuffer(arg, &view, PyBUF_SIMPLE) < 0) {
         return NULL;
     }
     if (view.len != (Py_ssize_t)sizeof f) {
@@ -551,7 +413,7 @@ static PyObject *filter_copy(core_filter_obj *self, PyObject *unused)
 {
     core_filter_obj *out;
     (void)unused;
-    if (!not_busy(self)) {
+    if (!core_not_busy(self)) {
         return NULL;
     }
     out = (core_filter_obj *)core_filter_type.tp_alloc(&core_filter_type, 0);
@@ -577,9 +439,12 @@ static PyMethodDef filter_methods[] = {
     {"configure", (PyCFunction)filter_configure, METH_VARARGS, "configure(dt s or 0, mount (9 floats) or None, ned)"},
     {"update", (PyCFunction)(void (*)(void))filter_update, METH_FASTCALL | METH_KEYWORDS,
      "update(gyr, acc, mag=None, dt=None) -> Estimate (attekf.Filter.update)"},
-    {"run", (PyCFunction)(void (*)(void))filter_run, METH_FASTCALL,
+    {"run", (PyCFunction)(void (*)(void))core_filter_run, METH_FASTCALL,
      "run(dt, gyr, acc, mag, state, var, quat, euler, angle_cov, flags, status, gyro_bias, gyro_bias_sigma): "
      "att_step over the rows, outputs (None: not wanted) written per row"},
+    {"smooth", (PyCFunction)(void (*)(void))core_filter_smooth, METH_FASTCALL,
+     "smooth(<run's arguments>, seg_len, progress) -> {counts}: the filter over the rows, then its "
+     "Rauch-Tung-Striebel smoother; every output is the smoothed estimate (flags, status, gyro_bias: the filter's)"},
     {"reset", (PyCFunction)filter_reset, METH_NOARGS, "att_reset: not aligned, the same settings"},
     {"settings", (PyCFunction)filter_settings, METH_NOARGS, "a copy of the settings in force (Settings)"},
     {"diag", (PyCFunction)filter_diag, METH_NOARGS, "the counters of att_diag_t (diag_tables() order)"},

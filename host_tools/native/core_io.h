@@ -20,6 +20,7 @@
 #ifndef CORE_IO_H
 #define CORE_IO_H
 
+#include <stddef.h>
 #include <stdint.h>
 
 #include "att.h"
@@ -58,6 +59,41 @@ void core_state(const att_ekf_t *f, double *x, double *var);
 
 /* Gyroscope offset (rad/s, body frame) and its 1-sigma per axis (rad/s). */
 void core_gyro_bias(const att_ekf_t *f, double b[3], double sigma[3]);
+
+/* Quaternion [w x y z] and ZYX Euler angles in the output frame of an attitude given by its
+ * ENU Euler angles e (rad; double precision, as the smoother has them). */
+void core_attitude_from_euler(const core_frame_t *fr, const double e[3], double q[4], double euler[3]);
+
+/* A packed ENU angle covariance (att_get_angle_covariance's order) into the output frame, in
+ * place. */
+void core_cov_to_frame(const core_frame_t *fr, double c[6]);
+
+/* The arrays of a batch run (Core.run, Core.smooth): inputs per sample (mag may be NULL),
+ * outputs per sample (any may be NULL: not wanted). Row i of an (n, k) array at [k * i]. */
+typedef struct {
+    const double *dt, *gyr, *acc, *mag;
+    double *state, *var, *quat, *euler, *cov, *bias, *bias_sigma;
+    uint32_t *flags;
+    uint8_t *status; /* CORE_STATUS_COLS per row: att_step's status, then the report's */
+} core_run_io_t;
+
+/* Columns of the status array. */
+enum {
+    CORE_STATUS_STEP = 0, /* att_step's return value */
+    CORE_STATUS_PREDICT = 1, /* att_step_report_t fields */
+    CORE_STATUS_GYRO = 2,
+    CORE_STATUS_ACCEL = 3,
+    CORE_STATUS_MAG = 4,
+    CORE_STATUS_COLS = 5
+};
+
+/* The sample i of io as an att_sample_t. */
+void core_run_sample(const core_frame_t *fr, const core_run_io_t *io, size_t i, att_sample_t *s);
+
+/* Writes row i of every wanted output of io: the filter f after sample i, whose step returned
+ * st with the report rep. */
+void core_write_row(const core_frame_t *fr, const att_ekf_t *f, size_t i, ekf_status_t st,
+                    const att_step_report_t *rep, const core_run_io_t *io);
 
 #ifdef __cplusplus
 }

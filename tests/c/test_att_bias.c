@@ -7,6 +7,7 @@
 #include <stdio.h>
 
 #include "att.h"
+#include "att_bias.h"
 #include "att_cov.h"
 #include "att_gen.h"
 #include "testsim.h"
@@ -216,6 +217,49 @@ static void test_f1_pattern_as_the_bias_filter_reads_it(void)
     }
 }
 
+/* The accelerometer's update moves the offset only at right angles to gravity (up): an
+ * offset along up turns the heading alone, which the tilt cannot see. */
+static void test_accelerometer_learns_only_horizontal_offset(void)
+{
+    static const ekf_scalar_t up[3] = {EKF_C(0), EKF_C(0), EKF_C(1)};
+    static const ekf_scalar_t h[3] = {EKF_C(1), EKF_C(0), EKF_C(0)};
+    static const ekf_scalar_t pht[3] = {EKF_C(1e-4), EKF_C(0), EKF_C(0)};
+    int with_up;
+    for (with_up = 0; with_up < 2; ++with_up) {
+        att_bias_t bf;
+        ekf_scalar_t x_ang[3] = {EKF_C(0), EKF_C(0), EKF_C(0)};
+        double pb_up0, pb_up1, c0, c2, expect02;
+        att_bias_reset(&bf, &att_default_settings.bias);
+        /* the x-z covariance after the update, from the gain's p = Pb u, u = -h V unit */
+        c0 = ekf_to_double(bf.Pb[0]) * 1e-3;
+        c2 = ekf_to_double(bf.Pb[2]) * 1e-3;
+        expect02 = -c0 * c2 / (1e-4 + (c0 + c2) * 1e-3);
+        /* the roll error depends on the offset's x and z components (s) */
+        bf.V[0] = EKF_C(1);
+        bf.V[2] = EKF_C(1);
+        pb_up0 = ekf_to_double(bf.Pb[2]);
+        TEST_ASSERT_EQUAL_INT(1, att_bias_update(&bf, 1, h, pht, EKF_C(0.005), EKF_C(1e-4), EKF_C(1),
+                                                 with_up ? up : NULL, x_ang));
+        pb_up1 = ekf_to_double(bf.Pb[2]);
+        TEST_ASSERT_TRUE(fabs(ekf_to_double(bf.b[0])) > 1e-6);
+        /* Joseph's form for the projected gain keeps the cross term of the full update */
+        TEST_ASSERT_TRUE(fabs(ekf_to_double(bf.Pb[4]) - expect02) <= 1e-2 * fabs(expect02));
+        if (with_up) {
+            /* nothing moves along up: neither the offset nor its variance */
+            TEST_ASSERT_TRUE(bf.b[2] == EKF_C(0));
+            TEST_ASSERT_TRUE(fabs(pb_up1 - pb_up0) <= 1e-6 * pb_up0);
+        } else {
+            TEST_ASSERT_TRUE(fabs(ekf_to_double(bf.b[2])) > 1e-6);
+            TEST_ASSERT_TRUE(pb_up1 < 0.9 * pb_up0);
+        }
+        {
+            const ekf_scalar_t *pb = bf.Pb;
+            const ekf_scalar_t full[9] = {pb[0], pb[3], pb[4], pb[3], pb[1], pb[5], pb[4], pb[5], pb[2]};
+            TEST_ASSERT_TRUE(ts_is_positive_definite(full, 3, NULL));
+        }
+    }
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -223,6 +267,7 @@ int main(void)
     RUN_TEST(test_offset_learned_in_motion_9d);
     RUN_TEST(test_offset_learned_in_motion_6d);
     RUN_TEST(test_rest_takes_over);
+    RUN_TEST(test_accelerometer_learns_only_horizontal_offset);
     RUN_TEST(test_saturated_gyro_forgets_sensitivity);
     RUN_TEST(test_consider_colored_error_matches_simulation);
     RUN_TEST(test_reported_covariance_contains_references);

@@ -162,8 +162,8 @@ def _check_ours_settings(methods, cfg) -> list:
     """Refuses unknown/invalid settings before the pool starts; drops ablation variants whose
     settings this build does not have (with a note)."""
     from .. import native
-    from ..bench import ABLATIONS
-    if not any(m.family == "ours" for m in methods):
+    from ..bench import ABLATIONS, OURS
+    if not any(m.family in OURS for m in methods):
         return methods
     native._make_settings(native.load(cfg.scalar), cfg.settings)   # raises SettingsError
     from ..bench import resolve_setting
@@ -221,7 +221,7 @@ def run(args: argparse.Namespace) -> int:
         methods = bench.select_methods(args.methods, args.ablation, args.oracle_bias, cfg)
     except ValueError as exc:
         raise UsageError(str(exc)) from None
-    if cfg.settings and any(m.family == "ours" for m in methods):
+    if cfg.settings and any(m.family in bench.OURS for m in methods):
         check_settings(cfg.scalar, cfg.settings)
     from ..outputs import Outputs
     with Outputs() as out:

@@ -28,7 +28,9 @@ evaluates every .csv/.hdf5/.h5 recording in it, with a per-trial and a mean tabl
 Outputs: the table on stdout; with --out DIR also DIR/table.txt, DIR/results.json and one
 plot per trial DIR/<trial>.png (Euler angles vs truth; errors with the filter's 3-sigma
 bounds). Without magnetometer (--no-mag, or none in the file) the scoring is 6D: the mean
-heading offset is removed first. Output paths are checked before the
+heading offset is removed first. --smooth scores the smoothed estimate (each sample given the
+whole recording: the filter, then its Rauch-Tung-Striebel smoother; attekf run --smooth) with
+its covariance. Output paths are checked before the
 work starts; the files are written under temporary names and renamed together at the end,
 so an error or Ctrl-C leaves none of them (and earlier files of the same names unchanged).
 
@@ -37,6 +39,7 @@ examples:
   attekf eval ../shared/data/broad --out out/broad --no-plot
   attekf eval trial.csv --output-csv recorded.csv
   attekf eval trial.csv --set accel_noise=0.3 --set mag_gate=0
+  attekf eval ../shared/data/broad --smooth --no-plot
   attekf eval --list-settings
 """
 
@@ -54,6 +57,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_settings_arguments(p)
     p.add_argument("--no-mag", action="store_true",
                    help="run without the magnetometer and score 6D (mean heading offset removed)")
+    p.add_argument("--smooth", action="store_true",
+                   help="score the smoothed estimate (the filter, then its smoother over the recording)")
     p.add_argument("--out", metavar="DIR", help="write table.txt, results.json and plots into DIR")
     p.add_argument("--json", metavar="FILE", help="write the results as JSON here (default DIR/results.json)")
     p.add_argument("--no-plot", action="store_true", help="no plots")
@@ -93,6 +98,8 @@ def run(args: argparse.Namespace) -> int:
     files = _collect(args.inputs)
     if args.output_csv and len(files) != 1:
         raise UsageError(f"--output-csv scores one recording, {len(files)} given")
+    if args.output_csv and args.smooth:
+        raise UsageError("--smooth runs the smoother; --output-csv scores a recorded output: give one of them")
     if args.out and not args.no_plot:
         require("matplotlib", "the plots of attekf eval (or --no-plot)", "plots")
     from ..outputs import Outputs
@@ -153,9 +160,10 @@ def _evaluate(args, files: List[str], settings: Dict[str, float], out, plan) -> 
                 tr = evaluate_output(rec, read_output_csv(args.output_csv), six_d=args.no_mag or rec.mag is None,
                                      time_offset_s=args.time_offset)
             else:
-                with bar(len(rec), f"{name}", args.quiet, unit="sample") as pb:
+                steps = 2 * len(rec) if args.smooth else len(rec)   # smoothing: forward, then backward
+                with bar(steps, f"{name}", args.quiet, unit="step" if args.smooth else "sample") as pb:
                     tr, res = evaluate_run(rec, settings, scalar=args.scalar, use_mag=not args.no_mag,
-                                           progress=pb.update)
+                                           progress=pb.update, smooth=args.smooth)
                 if args.save_output:
                     from ..output_file import write_result_csv
                     with bar(len(rec), f"writing {name}_output.csv", args.quiet, unit="row") as pb:
@@ -177,7 +185,8 @@ def _evaluate(args, files: List[str], settings: Dict[str, float], out, plan) -> 
         print(line)
     result = {
         "tool": f"attekf eval {__version__}",
-        "estimator": "recorded output" if args.output_csv else f"C estimator ({args.scalar})",
+        "estimator": "recorded output" if args.output_csv else
+                     f"C estimator ({args.scalar}{', smoothed' if args.smooth else ''})",
         "settings_changed": settings,
         "settings": None,
         "trials": [t.to_json() for t in trials],

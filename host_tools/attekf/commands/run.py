@@ -37,6 +37,11 @@ The output format follows OUT's extension:
   .h5    datasets t, quat, euler, sigma, cov (N, 3, 3), gyro_bias, gyro_bias_sigma, flags,
          status (N, 5); attributes frame, scalar, settings (needs the tools extra)
 
+--smooth writes the smoothed estimate instead: every sample's attitude and uncertainty given
+the whole recording (the same filter forward, then its Rauch-Tung-Striebel smoother backward;
+flags, status and gyroscope offset stay the filter's). Its memory is bounded: an hour at
+1 kHz needs about 64 MiB beside the output (docs/host_tools.md, "Smoothing").
+
 The output is written under a temporary name and renamed when complete; an error or Ctrl-C
 leaves no partial file.
 
@@ -44,6 +49,7 @@ examples:
   attekf run trial.csv -o trial_output.csv
   attekf run trial.hdf5 -o out.h5 --frame NED --settings tuned.toml
   attekf run trial.csv -o out.csv --no-mag --set accel_noise=0.3
+  attekf run trial.hdf5 -o smoothed.csv --smooth
 """
 
 
@@ -63,6 +69,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("-o", "--out", metavar="OUT", help="the output file (.csv, .h5 or .hdf5)")
     add_settings_arguments(p)
     p.add_argument("--no-mag", action="store_true", help="run without the magnetometer (6D)")
+    p.add_argument("--smooth", action="store_true",
+                   help="write the smoothed estimate (each sample given the whole recording)")
     p.add_argument("--frame", choices=("ENU", "NED"), default="ENU", type=str.upper,
                    help="earth frame of the outputs (default ENU: x east, y north, z up)")
     p.add_argument("--mounting", type=_mounting, metavar="R11,R12,...,R33",
@@ -101,13 +109,18 @@ def run(args: argparse.Namespace) -> int:
             if not str(exc).startswith("mounting:"):
                 raise
             raise UsageError(f"--{exc}") from None
-        with bar(len(rec), rec.name, args.quiet, unit="sample") as pb:
-            res = f.run_recording(rec, use_mag=not args.no_mag, progress=pb.update)
+        if args.smooth:   # forward, then backward: two steps per sample
+            with bar(2 * len(rec), f"{rec.name} (smoothing)", args.quiet, unit="step") as pb:
+                res = f.smooth_recording(rec, use_mag=not args.no_mag, progress=pb.update)
+        else:
+            with bar(len(rec), rec.name, args.quiet, unit="sample") as pb:
+                res = f.run_recording(rec, use_mag=not args.no_mag, progress=pb.update)
         with bar(len(rec), f"writing {os.path.basename(args.out)}", args.quiet, unit="row") as pb:
             write_result(out.temp(target), res, progress=pb.update)
         out.commit()
     if not args.quiet:
         s = res.summary()
         print(f"wrote {args.out}: {len(res)} samples, {s['aligned_samples']} with an estimate, "
-              f"{s['samples_refused']} refused by the filter ({args.scalar} build, {args.frame})", file=sys.stderr)
+              f"{s['samples_refused']} refused by the filter ({args.scalar} build, {args.frame}"
+              f"{', smoothed' if args.smooth else ''})", file=sys.stderr)
     return 0
