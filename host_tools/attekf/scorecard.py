@@ -5,7 +5,8 @@ scenarios.py; docs/accuracy.md, "How the robustness targets are measured", defin
 
 Parts (PARTS): rates (BROAD at 1/1, 1/2, 1/3, 1/4 of its rate and resampled to 1000 Hz),
 flips and tumbles (Monte Carlo at MC_RATES x MC_PEAKS), post-motion (inclination after motion
-stops, BROAD at its own rate), glitch, drops (BROAD trial DROP_TRIAL), gap. Every run is one
+stops, BROAD at its own rate), glitch, drops (BROAD trial DROP_TRIAL), gap, walking (a walk
+and a run, the run clipping the accelerometer, with a gyro offset and no rest: WALKS). Every run is one
 task of a process pool; every task is a pure function of its arguments (seeds included).
 """
 
@@ -24,7 +25,7 @@ from . import scenarios as S
 from .rest import post_motion_windows
 from .transform import Transform
 
-PARTS = ("rates", "flips", "tumbles", "post-motion", "glitch", "drops", "gap")
+PARTS = ("rates", "flips", "tumbles", "post-motion", "glitch", "drops", "gap", "walking")
 RATE_TRANSFORMS = (Transform(decimate=1), Transform(decimate=2), Transform(decimate=3), Transform(decimate=4),
                    Transform(resample_hz=1000.0))
 SAME_AS_NATIVE = (Transform(decimate=3), 0.3)     # ours at 1/3 of the rate within 0.3 deg of ours native
@@ -38,6 +39,12 @@ GAP = {"rate_hz": 100.0, "peak_rate_deg_s": 180.0, "gap_s": 0.3}
 GAP_LATER_S = 20.0
 DROP = {"drop": 0.05, "seed": 1}
 DROP_TRIAL = "07_undisturbed_fast_rotation_B"
+# a device carried by a walking or running person that never rests: the offset is learned in
+# motion or not at all (scenario "clipping"; the run's impacts clip a +-2 g accelerometer)
+WALKS = {"walking": {"step_rate_hz": 1.9, "impact_g": 1.2, "clip_g": 0.0},
+         "running": {"step_rate_hz": 2.8, "impact_g": 3.0, "clip_g": 2.0}}
+WALK_COMMON = {"duration_s": 120.0, "rest_s": 2.0, "after_s": 2.0, "offset_deg_s": 0.5}
+WALK_RATES = (100.0, 200.0)
 TARGETS = {"heading_p90": 1.0, "heading_max": 3.0, "peak_9d": 5.0, "coverage": 97.0}
 
 OURS = ("ours-9d", "ours-6d")
@@ -92,7 +99,8 @@ def sim_task(task) -> Dict[str, object]:
     part, sc, cfg = task
     rec = S.build(sc)
     out: Dict[str, object] = {"kind": part, "rate_hz": sc.rate_hz, "peak": sc.peak_rate_deg_s,
-                              "glitch_deg": sc.glitch_deg, "seed": sc.seed, "per": {}}
+                              "glitch_deg": sc.glitch_deg, "seed": sc.seed, "per": {},
+                              "walk": "running" if sc.clip_g > 0 else "walking"}
     t, ref = rec.t, rec.quat_ref
     for key in OURS + ONLINE:
         six = key.endswith("6d")
@@ -112,6 +120,11 @@ def sim_task(task) -> Dict[str, object]:
         elif part == "glitch":
             _, _, t1 = S.events(rec, "glitch")[0]
             r["recovery_s"] = R.recovery_time(t, err, t1)
+        elif part == "walking":
+            r["total"] = float(B.score(rec, q, six)["total"])
+            if cov is not None:
+                r["coverage"] = R.coverage_counts(C.consistency(q, ref, angle_cov=cov, movement=rec.movement,
+                                                                six_d=six))
         elif part == "gap":
             _, _, after = S.events(rec, "gap")[0]
             r["after"] = float(R.value_at(t, err, after))
@@ -160,6 +173,9 @@ def tasks(plan: Plan) -> List[tuple]:
             for g in GLITCH_DEG for s in range(SEEDS)]
     if "gap" in plan.parts:
         out += [("sim", "gap", S.ScenarioConfig.preset("gap", seed=s + 1, **GAP), cfg) for s in range(SEEDS)]
+    if "walking" in plan.parts:
+        out += [("sim", "walking", S.ScenarioConfig.preset("clipping", rate_hz=rate, seed=s + 1, **WALK_COMMON, **w),
+                 cfg) for w in WALKS.values() for rate in WALK_RATES for s in range(SEEDS)]
     return out
 
 

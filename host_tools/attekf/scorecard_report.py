@@ -236,9 +236,33 @@ def gap_rows(results: List[dict]) -> List[Row]:
     return rows
 
 
+def walking_rows(results: List[dict]) -> List[Row]:
+    rs = [r for r in results if r["kind"] == "walking"]
+    if not rs:
+        return []
+    rates = "/".join(f"{h:g}" for h in sorted({r["rate_hz"] for r in rs}))
+    what = (f"walking and running, {SC.WALK_COMMON['offset_deg_s']:g} deg/s gyro offset, no rest ({rates} Hz; "
+            "the run clips at 2 g): mean total RMSE (deg)")
+    rows = []
+    for walk in SC.WALKS:
+        sel = [r for r in rs if r["walk"] == walk]
+        for dim, d in DIMS:
+            m = {k: _mean([r["per"][k]["total"] for r in sel]) for k in (f"ours-{d}", f"vqf-online-{d}")}
+            rows.append(Row(what, f"{walk}, {dim}, {len(sel)} runs", _f(m[f"ours-{d}"]), _f(m[f"vqf-online-{d}"]),
+                            "", "ours <= VQF online", _le(m[f"ours-{d}"], m[f"vqf-online-{d}"]), m))
+    pooled = {d: R.pool_coverage([r["per"][f"ours-{d}"]["coverage"] for r in rs]) for _, d in DIMS}
+    text = ("/".join(_f(pooled["9d"].get(a), 1) for a in ("roll", "pitch", "yaw")) + " | "
+            + "/".join(_f(pooled["6d"].get(a), 1) for a in ("roll", "pitch")))
+    vals = [pooled["9d"].get(a) for a in ("roll", "pitch", "yaw")] + [pooled["6d"].get(a) for a in ("roll", "pitch")]
+    ok = None if any(v is None or math.isnan(v) for v in vals) else all(v >= SC.TARGETS["coverage"] for v in vals)
+    rows.append(Row(what, "coverage of our 3 sigma over every run (%): 9D r/p/y | 6D r/p", text, "", "",
+                    f">= {SC.TARGETS['coverage']:g} each", ok, pooled))
+    return rows
+
+
 def rows(results: List[dict]) -> List[Row]:
     return (rate_rows(results) + motion_rows(results) + post_motion_rows(results) + glitch_rows(results)
-            + drop_rows(results) + gap_rows(results))
+            + drop_rows(results) + gap_rows(results) + walking_rows(results))
 
 
 def format_table(rs: List[Row]) -> str:

@@ -386,6 +386,7 @@ static int add_constants(PyObject *m)
             PyModule_AddStringConstant(m, "LAYOUT", CORE_LAYOUT) < 0 ||
             PyModule_AddIntConstant(m, "N_STATES", ATT_N) < 0 ||
             PyModule_AddIntConstant(m, "STATE_SIZE", (long)sizeof(att_ekf_t)) < 0 ||
+            PyModule_AddIntConstant(m, "VARS_SIZE", (long)sizeof(att_vars_t)) < 0 ||
             PyModule_AddIntConstant(m, "TRACE_SIZE", (long)sizeof(att_trace_t)) < 0 ||
             PyModule_AddIntConstant(m, "FLAG_ALIGNED", (long)ATT_FLAG_ALIGNED) < 0)
                ? -1

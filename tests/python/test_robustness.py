@@ -96,6 +96,22 @@ def test_scorecard_plan():
     approach = [t[2].approach_deg for t in SC.tasks(plan) if t[0] == "sim" and t[1] == "flips"][:2]
     assert approach == [1.25, 3.75]                                       # spread over 0-5 deg
     assert len(SC.tasks(SC.Plan(parts=("gap",)))) == SC.SEEDS
+    walks = [t[2] for t in SC.tasks(SC.Plan(parts=("walking",)))]
+    assert len(walks) == len(SC.WALKS) * len(SC.WALK_RATES) * SC.SEEDS
+    assert {w.clip_g for w in walks} == {0.0, 2.0} and all(w.offset_deg_s == 0.5 for w in walks)
+
+
+def test_walking_rows_pass_and_miss():
+    def run(walk, ours, cov):
+        per = {f"ours-{d}": {"total": ours, "coverage": {a: (cov, 100) for a in ("roll", "pitch", "yaw")}}
+               for d in ("9d", "6d")}
+        per.update({f"vqf-online-{d}": {"total": 0.3} for d in ("9d", "6d")})
+        return {"kind": "walking", "walk": walk, "rate_hz": 100.0, "per": per}
+    rows = SR.walking_rows([run("walking", 0.2, 100.0), run("running", 0.4, 100.0)])
+    assert [r.passed for r in rows] == [True, True, False, False, True]
+    assert rows[0].ours == "0.20" and rows[2].online == "0.30"
+    rows = SR.walking_rows([run("walking", 0.2, 100.0), run("running", 0.2, 80.0)])
+    assert rows[-1].passed is False and rows[-1].ours.startswith("90.0/")   # pooled over both runs
 
 
 @pytest.fixture(scope="module")
