@@ -261,7 +261,7 @@ def open_bus(interface: str, channel: Optional[str], bitrate: Optional[int] = No
     except Exception as e:  # interfaces raise CanError, OSError, ValueError, ImportError, ...
         hint = ""
         if getattr(e, "errno", None) == errno.EAFNOSUPPORT:
-            hint = " (this kernel has no CAN support: run in a guest with vcan0, hal/tools/vcan_run.py, docs/hil.md)"
+            hint = " (this kernel has no CAN support: run in a guest with vcan0, tests/vm/vcan_run.py, docs/hil.md)"
         raise DeviceError(f"cannot open {interface} channel {channel}: {e or type(e).__name__}{hint}") from None
 
 

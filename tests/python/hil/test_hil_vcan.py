@@ -1,18 +1,18 @@
-"""Hardware-in-loop test on vcan0, on the first backend of hal/tools/vcan_run.py that works
+"""Hardware-in-loop test on vcan0, on the first backend of tests/vm/vcan_run.py that works
 here (the host's CAN, user-mode Linux or QEMU; docs/hil.md).
 
-One guest boot runs three scenarios with hal/tools/hil_scenario.sh (attekf-node on vcan0,
+One guest boot runs four scenarios with tests/vm/hil_scenario.sh (attekf-node on vcan0,
 `attekf record` logging the bus, `attekf replay` injecting the stream at recorded time):
 
   clean-sim     a simulated recording, 8 s at 200 Hz (always)
   clean-broad   6 s of a real BROAD recording at 285.7 Hz (skipped if the data is absent)
   faults        6 s at 200 Hz with dropped, duplicated, reordered, wrong-length and unknown-id
                 frames injected, and vcan0 taken down for 0.3 s in the middle
+  recreate      vcan0 deleted and created again while the node runs (can-utils' canplayer)
 
 and the same frame logs go through the node's virtual backend (attekf-node --replay) on the host.
 The clean runs must lose no input frame, produce every expected output, and equal the virtual
 run; the fault run must count every injected fault and recover from the bus outage.
-Runtime: about 40 s under UML (boot 2 s, three Python-heavy scenarios, 20 s of paced replay).
 """
 
 from __future__ import annotations

@@ -14,11 +14,11 @@
 #        ifstats.txt  the interface's kernel statistics before the replay and at the end
 #                     (rx_dropped counts frames the kernel dropped, e.g. sent as it went down)
 #
-#   hal/tools/hil_scenario.sh OUTDIR IFACE INPUT [--speed X] [--bounce AFTER_S,DOWN_S]
+#   tests/vm/hil_scenario.sh OUTDIR IFACE INPUT [--speed X] [--bounce AFTER_S,DOWN_S]
 #                             [--node-arg ARG]...
 #
 # Runs wherever IFACE exists: a real can0, a vcan0 on a kernel with CAN, or inside a guest of
-# hal/tools/vcan_run.py (user-mode Linux or QEMU). Environment: ATTEKF_NODE (node binary, default
+# tests/vm/vcan_run.py (user-mode Linux or QEMU). Environment: ATTEKF_NODE (node binary, default
 # build/host/firmware/app/attekf-node), ATTEKF_PYTHON (interpreter with the attekf package,
 # default .venv/bin/python). Exit status: 0 if every step ran (the checks are the tests' job),
 # 1 if a step failed (its log says why), 2 usage.
