@@ -11,7 +11,12 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
 JOBS="$(nproc)"
 
+# Each stage's wall time, printed at the end: the whole suite must stay under 12 minutes on
+# 2 cores, and these say where the time goes.
+times=()
+t_setup=$SECONDS
 "$ROOT/scripts/setup.sh" --no-demo || { echo "[test] set-up failed" >&2; exit 1; }
+times+=("$((SECONDS - t_setup)) s  set-up (scripts/setup.sh --no-demo)")
 
 # shellcheck source=scripts/prereq.sh
 . "$ROOT/scripts/prereq.sh"
@@ -21,11 +26,12 @@ skipped=()
 # step <title> <command...>: runs one stage; exit 77 means "skipped, tool missing" (prereq.sh),
 # which under CI=true counts as a failure like any other non-zero status.
 step() {
-  local title="$1" rc
+  local title="$1" rc t0=$SECONDS
   shift
   echo "[test] $title"
   "$@"
   rc=$?
+  times+=("$((SECONDS - t0)) s  $title")
   if [ "$rc" -eq 0 ]; then
     return
   elif [ "$rc" -eq 77 ] && ! attekf_in_ci; then
@@ -40,12 +46,12 @@ step "ctest (build/host)" ctest --test-dir "$ROOT/build/host" --output-on-failur
 # ctest lists skipped tests without their reason; tests/RunTest.cmake logged it
 grep -h "^ATTEKF-SKIP:" "$ROOT/build/host/Testing/Temporary/LastTest.log" 2>/dev/null | sed 's/^/[test] ctest /'
 step "Cortex-M builds under QEMU (scripts/test_target.sh)" "$ROOT/scripts/test_target.sh"
-step "pytest" "$ROOT/.venv/bin/python" -m pytest "$ROOT/tests/python" -q -ra
+step "pytest" "$ROOT/.venv/bin/python" -m pytest "$ROOT/tests/python" -q -ra --durations=15
 
 # The pip package as a user gets it: sdist -> wheel (CMake) -> a fresh virtual environment
 # outside the repository, every command and the Python API there (tests/package/).
-echo "[test] Python package from its sdist in a fresh virtual environment (tests/package)"
-"$ROOT/.venv/bin/python" -m pytest "$ROOT/tests/package" -q -ra || status=1
+step "Python package from its sdist in a fresh virtual environment (tests/package)" \
+  "$ROOT/.venv/bin/python" -m pytest "$ROOT/tests/package" -q -ra
 
 # Reliability (docs/reliability.md): static analysis, the ctest under ASan + UBSan, valgrind on
 # the node, a short fuzz run of every target (scripts/fuzz.sh --time 3600 for a long one).
@@ -54,6 +60,8 @@ step "ctest under ASan + UBSan (scripts/test_sanitizers.sh)" "$ROOT/scripts/test
 step "valgrind memcheck on attekf-node (scripts/test_valgrind.sh)" "$ROOT/scripts/test_valgrind.sh"
 step "fuzzing, 60 s per target, mutation seed 1 (scripts/fuzz.sh)" "$ROOT/scripts/fuzz.sh" --time 60 --seed 1
 
+echo "[test] wall time per stage (total $SECONDS s):"
+for t in "${times[@]}"; do echo "[test]   $t"; done
 for s in "${skipped[@]}"; do echo "[test] SKIPPED (a tool is missing, see above): $s"; done
 for s in "${failed[@]}"; do echo "[test] FAILED: $s"; done
 if [ "$status" -ne 0 ]; then

@@ -213,9 +213,10 @@ def wrapper_plan(setting: str, uml_version: Tuple[int, ...], probe: Callable[[],
 
 
 def retry_with_wrapper(plan: WrapperPlan, err: BackendError) -> bool:
-    """Whether a failed UML boot is tried again with the wrapper: the plan allows it, the
-    boot was without it, and the guest died on the host's refusal of its XSTATE write."""
-    return plan.retry and plan.first is None and err.boot_failed and FP_REGS_FAILED in err.evidence
+    """Whether a failed UML boot is tried again with the wrapper: the plan allows it (only a
+    plan whose first boot is without it does) and the guest died on the host's refusal of its
+    XSTATE write before the command started."""
+    return plan.retry and err.boot_failed and FP_REGS_FAILED in err.evidence
 
 
 # ---------------------------------------------------------------------------------------------
