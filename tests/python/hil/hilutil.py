@@ -18,7 +18,7 @@ REPO = Path(__file__).resolve().parents[3]
 VM = REPO / "tests" / "vm"          # the guests that bring vcan0 up, and the HIL scenario
 SCENARIO = VM / "hil_scenario.sh"
 REPORT: List[str] = []   # lines for the terminal summary (measured loss, latency)
-FULL_SUITE_BACKEND: List[str] = []   # the backend the full HIL suite ran on in this session
+FULL_SUITE: List = []   # the runner's Result of the full HIL suite's guest in this session
 
 
 def report(line: str) -> None:

@@ -102,7 +102,7 @@ def hil(tmp_path_factory, vcan, node):
         for name, s in scen.items()) + "; true"
     env = dict(os.environ, ATTEKF_NODE=str(node))
     res = vcan.run(script, env=env, timeout=600)
-    hilutil.FULL_SUITE_BACKEND.append(res.mode)
+    hilutil.FULL_SUITE.append(res)
     report(f"HIL ran on backend {res.mode}, {res.seconds:.1f} s wall time (command started after "
            f"{res.boot_seconds:.1f} s)" + "".join(f"; {n}" for n in res.notes))
     for name, s in scen.items():

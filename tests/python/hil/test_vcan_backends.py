@@ -80,7 +80,7 @@ def _round_trip_script(d, node, py, euler_id):
 def test_round_trip(backend, vcan, node, tmp_path):
     from attekf import canproto
     from attekf.sim import SimConfig, simulate
-    if backend in hilutil.FULL_SUITE_BACKEND:
+    if backend in [r.mode for r in hilutil.FULL_SUITE]:
         pytest.skip(f"{backend} ran the full HIL suite in this session")
     why = vcan.precheck(backend, kvm_flags=False)
     if why:
