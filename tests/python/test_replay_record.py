@@ -157,6 +157,35 @@ def test_replay_counts_send_failures_and_goes_on(rec_csv):
     assert st.errors == {"ENETDOWN": st.failed}
 
 
+def test_replay_marks_the_stream_time_whatever_its_lag(rec_csv, tmp_path):
+    """--mark-at S --mark-file F: F appears just before the first frame S s or more into the
+    stream goes out, by the stream's time, so a replay that lags (here: no pacing at all)
+    marks the same frame as one on time."""
+    import can
+
+    mark = tmp_path / "mark"
+
+    class Watch(can.BusABC):
+        """Records, per frame sent, whether the mark file existed."""
+        def __init__(self):
+            super().__init__(channel="watch")
+            self.seen = []
+
+        def send(self, msg, timeout=None):
+            self.seen.append(mark.exists())
+
+        def _recv_internal(self, timeout):
+            return None, False
+
+    fr = replay.load_frames(str(rec_csv))
+    bus = Watch()
+    replay.send_stream(bus, replay.iterate_loops(fr, 1, True), len(fr), fast=True, quiet=True,
+                       mark=(1.5, str(mark)))
+    t = np.array([f[0] for f in replay.iterate_loops(fr, 1, True)])
+    assert bus.seen == list(t - t[0] >= 1.5) and 0 < sum(bus.seen) < len(t)
+    assert attekf(["replay", str(rec_csv), "--to-log", str(tmp_path / "x.log"), "--mark-at", "1"]) == 2
+
+
 def test_record_decodes_a_log_to_csv_and_stats(rec_csv, tmp_path):
     """Outputs of a log (encoded here with cantools) come out as estimator-output CSV rows whose
     t_s is the sample time of the input they include."""

@@ -9,8 +9,8 @@
 #        bus.log      every frame on the bus (candump format)
 #        record.json  recorder's view: frames, sequence gaps, bus latency (attekf record --stats)
 #        replay.json  what was sent and what failed (attekf replay --stats)
-#        bounce.log   when the interface went down/up (with --bounce: AFTER_S after the first
-#                     frame of the replay, for DOWN_S)
+#        bounce.log   when the interface went down/up (with --bounce: when the replay reaches
+#                     AFTER_S into the stream, whatever its lag behind the clock, for DOWN_S)
 #        ifstats.txt  the interface's kernel statistics before the replay and at the end
 #                     (rx_dropped counts frames the kernel dropped, e.g. sent as it went down)
 #
@@ -42,7 +42,7 @@ PY="${ATTEKF_PYTHON:-$ROOT/.venv/bin/python}"
 [ -x "$NODE" ] || { echo "hil_scenario: $NODE not built" >&2; exit 1; }
 [ -x "$PY" ] || { echo "hil_scenario: no Python at $PY" >&2; exit 1; }
 mkdir -p "$OUT"
-rm -f "$OUT"/node.ready "$OUT"/record.ready "$OUT"/replay.started
+rm -f "$OUT"/node.ready "$OUT"/record.ready "$OUT"/replay.started "$OUT"/replay.mark "$OUT"/replay.done
 
 "$NODE" -i "$IFACE" --ready-file "$OUT/node.ready" --stats "$OUT/node.json" "${NODE_ARGS[@]}" \
   > "$OUT/node.log" 2>&1 &
@@ -77,17 +77,22 @@ rm -f "$OUT/ifstats.txt"
 ifstats start
 
 BOUNCE_PID=""
+MARK=()
 if [ -n "$BOUNCE" ]; then
+  # by the stream's time, not the clock's: a replay that lags (a loaded machine) would
+  # otherwise see the outage earlier in the stream than planned
   AFTER="${BOUNCE%,*}"; DOWN="${BOUNCE#*,}"
-  ( for _ in $(seq 1 1200); do [ -f "$OUT/replay.started" ] && break; sleep 0.02; done
-    sleep "$AFTER"; echo "down $(date +%s.%N)"; ip link set "$IFACE" down; sleep "$DOWN";
+  MARK=(--mark-at "$AFTER" --mark-file "$OUT/replay.mark")
+  ( while [ ! -f "$OUT/replay.mark" ]; do [ -f "$OUT/replay.done" ] && exit 0; sleep 0.02; done
+    echo "down $(date +%s.%N)"; ip link set "$IFACE" down; sleep "$DOWN";
     ip link set "$IFACE" up; echo "up $(date +%s.%N)" ) > "$OUT/bounce.log" 2>&1 &
   BOUNCE_PID=$!
 fi
 
 "$PY" -m attekf replay -q "$INPUT" -i socketcan -c "$IFACE" --speed "$SPEED" \
-  --stats "$OUT/replay.json" --started-file "$OUT/replay.started" > "$OUT/replay.log" 2>&1
+  --stats "$OUT/replay.json" --started-file "$OUT/replay.started" "${MARK[@]}" > "$OUT/replay.log" 2>&1
 REPLAY_RC=$?
+touch "$OUT/replay.done"
 [ -n "$BOUNCE_PID" ] && wait "$BOUNCE_PID"
 
 sleep 0.5   # the outputs of the last samples

@@ -101,6 +101,11 @@ def add_arguments(p) -> None:
     p.add_argument("--stats", metavar="FILE", help="write what was sent (counts, failures) as JSON")
     p.add_argument("--started-file", metavar="FILE",
                    help="create FILE when the first frame goes out (to time things in scripts)")
+    p.add_argument("--mark-at", type=nonneg_float, default=None, metavar="S",
+                   help="with --mark-file: create that file when the stream reaches S seconds after "
+                        "its first frame, just before sending that frame (to time things in "
+                        "scripts by the stream, whatever the replay's lag)")
+    p.add_argument("--mark-file", metavar="FILE", help="the file of --mark-at")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -290,9 +295,11 @@ def _pack_frame(fid: int, data: bytes, ext: bool) -> bytes:
 def send_stream(bus, frames: Iterator[Tuple[float, int, bytes, bool]], total: Optional[int],
                 speed: float = 1.0, fast: bool = False, max_fps: float = 0.0,
                 send_timeout: float = 0.05, quiet: bool = False,
-                stop_flag: Optional[List[bool]] = None, started_file: Optional[str] = None) -> SendStats:
+                stop_flag: Optional[List[bool]] = None, started_file: Optional[str] = None,
+                mark: Optional[Tuple[float, str]] = None) -> SendStats:
     """Sends frames paced at their time stamps / speed (or as fast as allowed). Frames with the
-    same time stamp (the frames of one sample) go out back to back."""
+    same time stamp (the frames of one sample) go out back to back. mark (S, FILE): FILE is
+    created just before the first frame S seconds or more into the stream goes out."""
     import can
     from ..progress import bar
     st = SendStats()
@@ -334,6 +341,9 @@ def send_stream(bus, frames: Iterator[Tuple[float, int, bytes, bool]], total: Op
                     if next_slot > now:
                         time.sleep(next_slot - now)
                     next_slot = max(next_slot, now - 0.01) + min_gap  # small catch-up bursts only
+                if mark is not None and t - t_first >= mark[0]:
+                    open(mark[1], "w").close()
+                    mark = None
             if raw is not None:
                 frame = _pack_frame(fid, data, ext)
                 deadline = None
@@ -417,6 +427,10 @@ def run(args) -> int:
         out.file(args.stats, "--stats")
         if args.started_file:
             check_file(args.started_file, "--started-file")
+        if (args.mark_at is None) != (args.mark_file is None):
+            raise UsageError("--mark-at and --mark-file go together")
+        if args.mark_file:
+            check_file(args.mark_file, "--mark-file")
         fr = load_frames(args.input, args.start, args.stop, use_mag=not args.no_mag)
         is_rec = os.path.splitext(args.input)[1].lower() in RECORDING_EXT
         total = len(fr) * args.loop if args.loop else None
@@ -467,7 +481,8 @@ def _send(args, stream, total) -> Tuple[SendStats, bool]:
     try:
         st = send_stream(bus, stream, total, speed=args.speed, fast=args.fast,
                          max_fps=args.max_fps, send_timeout=args.send_timeout,
-                         quiet=args.quiet, stop_flag=stop_flag, started_file=args.started_file)
+                         quiet=args.quiet, stop_flag=stop_flag, started_file=args.started_file,
+                         mark=None if args.mark_file is None else (args.mark_at, args.mark_file))
     finally:
         for sig, old in ((signal.SIGINT, old_int), (signal.SIGTERM, old_term)):
             if old is not None:

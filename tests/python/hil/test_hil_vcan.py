@@ -33,7 +33,7 @@ OUT_PERIOD_US = 10000        # the node's default output rate, 100 Hz
 BROAD_TRIAL = "07_undisturbed_fast_rotation_B.hdf5"
 FAULT_SECONDS = 6.0
 LATE_PART = 1000             # sample of the late faults (after the bounce)
-BOUNCE = (3.0, 0.3)          # vcan0 down AFTER s after the first frame, for DOWN s
+BOUNCE = (3.0, 0.3)          # vcan0 down when the replay reaches AFTER s of the stream, for DOWN s
 TIMING_FLAGS = 0x0002 | 0x0020 | 0x0800   # Stale, LinkError, Heartbeat: depend on wall time
 
 
