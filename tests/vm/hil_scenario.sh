@@ -9,8 +9,9 @@
 #        bus.log      every frame on the bus (candump format)
 #        record.json  recorder's view: frames, sequence gaps, bus latency (attekf record --stats)
 #        replay.json  what was sent and what failed (attekf replay --stats)
-#        bounce.log   when the interface went down/up (with --bounce: when the replay reaches
-#                     AFTER_S into the stream, whatever its lag behind the clock, for DOWN_S)
+#        bounce.log   when the interface went down/up (with --bounce: down when the replay
+#                     reaches AFTER_S of the stream, up DOWN_S later, and not before the
+#                     replay reaches AFTER_S + DOWN_S)
 #        ifstats.txt  the interface's kernel statistics before the replay and at the end
 #                     (rx_dropped counts frames the kernel dropped, e.g. sent as it went down)
 #
@@ -42,7 +43,8 @@ PY="${ATTEKF_PYTHON:-$ROOT/.venv/bin/python}"
 [ -x "$NODE" ] || { echo "hil_scenario: $NODE not built" >&2; exit 1; }
 [ -x "$PY" ] || { echo "hil_scenario: no Python at $PY" >&2; exit 1; }
 mkdir -p "$OUT"
-rm -f "$OUT"/node.ready "$OUT"/record.ready "$OUT"/replay.started "$OUT"/replay.mark "$OUT"/replay.done
+rm -f "$OUT"/node.ready "$OUT"/record.ready "$OUT"/replay.started "$OUT"/replay.down "$OUT"/replay.up \
+  "$OUT"/replay.done
 
 "$NODE" -i "$IFACE" --ready-file "$OUT/node.ready" --stats "$OUT/node.json" "${NODE_ARGS[@]}" \
   > "$OUT/node.log" 2>&1 &
@@ -79,12 +81,15 @@ ifstats start
 BOUNCE_PID=""
 MARK=()
 if [ -n "$BOUNCE" ]; then
-  # by the stream's time, not the clock's: a replay that lags (a loaded machine) would
-  # otherwise see the outage earlier in the stream than planned
+  # by the stream's time as well as the clock's: a replay that lags (a loaded machine) would
+  # otherwise meet the outage elsewhere in the stream, and lose more of it as it catches up;
+  # and an `ip` that starts late (the same machine) still leaves the interface down DOWN_S
   AFTER="${BOUNCE%,*}"; DOWN="${BOUNCE#*,}"
-  MARK=(--mark-at "$AFTER" --mark-file "$OUT/replay.mark")
-  ( while [ ! -f "$OUT/replay.mark" ]; do [ -f "$OUT/replay.done" ] && exit 0; sleep 0.02; done
-    echo "down $(date +%s.%N)"; ip link set "$IFACE" down; sleep "$DOWN";
+  MARK=(--mark "$AFTER:$OUT/replay.down" --mark "$(awk -v a="$AFTER" -v d="$DOWN" 'BEGIN { print a + d }'):$OUT/replay.up")
+  wait_for() { while [ ! -f "$1" ]; do [ -f "$OUT/replay.done" ] && return 1; sleep 0.02; done; }
+  ( wait_for "$OUT/replay.down" || exit 0
+    echo "down $(date +%s.%N)"; ip link set "$IFACE" down; sleep "$DOWN"
+    wait_for "$OUT/replay.up"
     ip link set "$IFACE" up; echo "up $(date +%s.%N)" ) > "$OUT/bounce.log" 2>&1 &
   BOUNCE_PID=$!
 fi

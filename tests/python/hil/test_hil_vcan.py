@@ -33,7 +33,7 @@ OUT_PERIOD_US = 10000        # the node's default output rate, 100 Hz
 BROAD_TRIAL = "07_undisturbed_fast_rotation_B.hdf5"
 FAULT_SECONDS = 6.0
 LATE_PART = 1000             # sample of the late faults (after the bounce)
-BOUNCE = (3.0, 0.3)          # vcan0 down when the replay reaches AFTER s of the stream, for DOWN s
+BOUNCE = (3.0, 0.3)          # vcan0 down from AFTER to AFTER + DOWN s of the stream
 TIMING_FLAGS = 0x0002 | 0x0020 | 0x0800   # Stale, LinkError, Heartbeat: depend on wall time
 
 
@@ -271,7 +271,13 @@ def canproto_bits():
     return canproto.STATUS_BITS
 
 
-def test_faults_live_equals_virtual_before_outage_and_recovers(hil):
+def test_faults_live_equals_virtual_before_outage_and_recovers(hil, tmp_path):
+    """Up to the outage the live node equals the virtual run of the planned stream; as a whole,
+    the outage included, it equals the virtual run of the frames it actually received (the
+    recorder's log of the bus: the same frames, in the same order), output for output. How many
+    samples the outage costs depends on the machine's load; that the node on the bus does what
+    it does offline with the same input does not."""
+    from attekf import canproto
     s = hil["faults"]
     live, virt = s["live_out"].rows, s["virt_out"].rows
     gap_rows = [i for i, r in enumerate(live) if r.seq > 500 and (r.flags & canproto_bits()["Gap"])]
@@ -282,10 +288,20 @@ def test_faults_live_equals_virtual_before_outage_and_recovers(hil):
     before_v = [r for r in virt if r.seq <= lost_from]
     assert [r.seq for r in before_l] == [r.seq for r in before_v]
     assert [r.euler for r in before_l] == [r.euler for r in before_v]
-    # after the outage: outputs continue to the end of the stream, aligned, near the virtual run
+    # after the outage: outputs continue to the end of the stream, aligned
     last = live[-1]
     assert last.seq == virt[-1].seq and last.flags & 0x1
-    assert max(abs(a - b) for a, b in zip(last.euler[:2], virt[-1].euler[:2])) < 0.05
+    outputs = {canproto.frame_id(n) for n in canproto.OUTPUT_MESSAGES}
+    received = [f for f in hilutil.read_log(s["dir"] / "bus.log") if f[3] or f[1] not in outputs]
+    hilutil.write_log(tmp_path / "received.log", received)
+    again = hilutil.run_virtual(tmp_path / "received.log", tmp_path / "again.log", tmp_path / "again.json")
+    c, a = s["node"]["counters"], again["counters"]
+    for k in ("rx_frames", "unknown_id", "bad_dlc", "duplicate", "late", "incomplete", "discarded",
+              "gaps", "missing", "samples", "outputs"):
+        assert a[k] == c[k], f"{k}: live {c[k]}, virtual run of the received frames {a[k]}"
+    rows = hilutil.decode_outputs(tmp_path / "again.log").rows
+    assert [(r.seq, r.euler, r.rates, r.sigma, r.att_flags, r.flags & ~TIMING_FLAGS) for r in live] == \
+        [(r.seq, r.euler, r.rates, r.sigma, r.att_flags, r.flags & ~TIMING_FLAGS) for r in rows]
 
 
 def test_interface_deleted_and_recreated(hil):
