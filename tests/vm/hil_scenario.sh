@@ -92,6 +92,9 @@ if [ -n "$BOUNCE" ]; then
     wait_for "$OUT/replay.up"
     ip link set "$IFACE" up; echo "up $(date +%s.%N)" ) > "$OUT/bounce.log" 2>&1 &
   BOUNCE_PID=$!
+  # real-time priority (root): inside a guest with one virtual CPU the replay and the node
+  # would otherwise delay the `ip` commands by a second or more on a loaded host
+  chrt -f -p 10 "$BOUNCE_PID" > /dev/null 2>&1 || true
 fi
 
 "$PY" -m attekf replay -q "$INPUT" -i socketcan -c "$IFACE" --speed "$SPEED" \
