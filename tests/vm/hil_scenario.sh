@@ -81,20 +81,29 @@ ifstats start
 BOUNCE_PID=""
 MARK=()
 if [ -n "$BOUNCE" ]; then
-  # by the stream's time as well as the clock's: a replay that lags (a loaded machine) would
+  # By the stream's time as well as the clock's: a replay that lags (a loaded machine) would
   # otherwise meet the outage elsewhere in the stream, and lose more of it as it catches up;
-  # and an `ip` that starts late (the same machine) still leaves the interface down DOWN_S
+  # and an `ip` that starts late still leaves the interface down DOWN_S. The waits start no
+  # process (`read -t` on a pipe nobody writes is the pause) and `ip` comes before the time
+  # is logged: in a guest with one virtual CPU shared with the replay and the node, each
+  # process started costs up to a second on a loaded host.
   AFTER="${BOUNCE%,*}"; DOWN="${BOUNCE#*,}"
   MARK=(--mark "$AFTER:$OUT/replay.down" --mark "$(awk -v a="$AFTER" -v d="$DOWN" 'BEGIN { print a + d }'):$OUT/replay.up")
-  wait_for() { while [ ! -f "$1" ]; do [ -f "$OUT/replay.done" ] && return 1; sleep 0.02; done; }
-  ( wait_for "$OUT/replay.down" || exit 0
-    echo "down $(date +%s.%N)"; ip link set "$IFACE" down; sleep "$DOWN"
+  (
+    coproc PAUSER { exec sleep 3600; }
+    trap 'kill "$PAUSER_PID" 2>/dev/null' EXIT
+    pause() {   # read's time-out on a pipe nobody writes; sleep if that pipe is gone
+      read -r -t "$1" -u "${PAUSER[0]}" 2> /dev/null
+      [ $? -gt 128 ] || sleep "$1"
+    }
+    wait_for() { until [ -f "$1" ]; do [ -f "$OUT/replay.done" ] && return 1; pause 0.01; done; }
+    wait_for "$OUT/replay.down" || exit 0
+    ip link set "$IFACE" down; echo "down $EPOCHREALTIME"
+    pause "$DOWN"
     wait_for "$OUT/replay.up"
-    ip link set "$IFACE" up; echo "up $(date +%s.%N)" ) > "$OUT/bounce.log" 2>&1 &
+    ip link set "$IFACE" up; echo "up $EPOCHREALTIME"
+  ) > "$OUT/bounce.log" 2>&1 &
   BOUNCE_PID=$!
-  # real-time priority (root): inside a guest with one virtual CPU the replay and the node
-  # would otherwise delay the `ip` commands by a second or more on a loaded host
-  chrt -f -p 10 "$BOUNCE_PID" > /dev/null 2>&1 || true
 fi
 
 "$PY" -m attekf replay -q "$INPUT" -i socketcan -c "$IFACE" --speed "$SPEED" \
