@@ -101,14 +101,15 @@ def build_xstate_tools() -> Dict[str, str]:
     return paths
 
 
-def probe_xstate_write(n_bytes: int = choice.UML_XSTATE_BYTES) -> choice.Probe:
-    """The host kernel's answer to an XSTATE write of UML's buffer size (once per process)."""
+def probe_xstate_write() -> choice.Probe:
+    """The host kernel's answer to an XSTATE write of UML's buffer size (asked once per
+    process)."""
     global _probe
     if _probe is None:
         try:
             tools = build_xstate_tools()
-            p = subprocess.run([tools["selftest"], "--probe", str(n_bytes)], capture_output=True,
-                               text=True, timeout=20, stdin=subprocess.DEVNULL)
+            p = subprocess.run([tools["selftest"], "--probe", str(choice.UML_XSTATE_BYTES)],
+                               capture_output=True, text=True, timeout=20, stdin=subprocess.DEVNULL)
             _probe = choice.parse_probe(p.returncode, p.stdout, p.stderr)
         except (RuntimeError, OSError, subprocess.TimeoutExpired) as e:
             _probe = choice.parse_probe(None, "", str(e))

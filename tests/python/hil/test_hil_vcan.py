@@ -274,9 +274,10 @@ def canproto_bits():
 def test_faults_live_equals_virtual_before_outage_and_recovers(hil, tmp_path):
     """Up to the outage the live node equals the virtual run of the planned stream; as a whole,
     the outage included, it equals the virtual run of the frames it actually received (the
-    recorder's log of the bus: the same frames, in the same order), output for output. How many
-    samples the outage costs depends on the machine's load; that the node on the bus does what
-    it does offline with the same input does not."""
+    recorder's log of the bus: the same frames, in the same order), output for output, but for
+    the outputs it could not send while vcan0 was down. How many samples the outage costs
+    depends on the machine's load; that the node on the bus does what it does offline with the
+    same input does not."""
     from attekf import canproto
     s = hil["faults"]
     live, virt = s["live_out"].rows, s["virt_out"].rows
@@ -299,9 +300,14 @@ def test_faults_live_equals_virtual_before_outage_and_recovers(hil, tmp_path):
     for k in ("rx_frames", "unknown_id", "bad_dlc", "duplicate", "late", "incomplete", "discarded",
               "gaps", "missing", "samples", "outputs"):
         assert a[k] == c[k], f"{k}: live {c[k]}, virtual run of the received frames {a[k]}"
-    rows = hilutil.decode_outputs(tmp_path / "again.log").rows
-    assert [(r.seq, r.euler, r.rates, r.sigma, r.att_flags, r.flags & ~TIMING_FLAGS) for r in live] == \
-        [(r.seq, r.euler, r.rates, r.sigma, r.att_flags, r.flags & ~TIMING_FLAGS) for r in rows]
+    # every output on the bus is the virtual run's, bit for bit; the virtual run's outputs not on
+    # the bus are those the node computed while vcan0 was down (from frames it had received
+    # before: a backlog on a loaded machine), whose sends failed
+    key = lambda r: (r.euler, r.rates, r.sigma, r.att_flags, r.flags & ~TIMING_FLAGS)
+    offline = {r.seq: key(r) for r in hilutil.decode_outputs(tmp_path / "again.log").rows}
+    assert [key(r) for r in live] == [offline.get(r.seq) for r in live]
+    not_sent = len(offline) - len(live)
+    assert 0 <= not_sent <= c["tx_errors"], (not_sent, c["tx_errors"])
 
 
 def test_interface_deleted_and_recreated(hil):
