@@ -1,7 +1,7 @@
 # The file list of docs/porting.md ("Building without CMake"), generated from the CMake
 # source lists so that it stays what CMake builds:
 #   cmake -DLISTS=<lists.cmake> -DMODE=check|update [-DCC=<compiler> -DOUT=<dir>] -P PortingDoc.cmake
-# LISTS sets ROOT, CORE_SOURCES, FIXED_SOURCES, CORE_INCLUDES, PUBLIC_HEADERS, MODELS_SOURCES,
+# LISTS sets ROOT, CORE_SOURCES, IEEE_SOURCES, FIXED_SOURCES, CORE_INCLUDES, PUBLIC_HEADERS, MODELS_SOURCES,
 # MODELS_INCLUDES, MODELS_HEADERS and WARNINGS (tests/consumer/register.cmake writes it from
 # firmware/CMakeLists.txt's variables; ctest porting_doc_current runs MODE=check,
 # cmake --build build/host --target porting-doc runs MODE=update).
@@ -22,7 +22,7 @@ set(end_marker "<!-- END FILES -->")
 # The documented command lines (the check runs them as written, with CC for cc).
 set(cmd_float "cc -std=c99 -O2 -DEKF_SCALAR_FLOAT=1 -Iattekf -o app main.c attekf/*.c -lm")
 
-attekf_header_closure(core_headers FILES ${CORE_SOURCES} ${FIXED_SOURCES} DIRS ${CORE_INCLUDES})
+attekf_header_closure(core_headers FILES ${CORE_SOURCES} ${IEEE_SOURCES} ${FIXED_SOURCES} DIRS ${CORE_INCLUDES})
 attekf_header_closure(models_headers FILES ${MODELS_SOURCES} DIRS ${MODELS_INCLUDES})
 
 function(rel_list out)
@@ -36,6 +36,7 @@ endfunction()
 set(private_headers ${core_headers})
 list(REMOVE_ITEM private_headers ${PUBLIC_HEADERS})
 rel_list(t_sources ${CORE_SOURCES})
+rel_list(t_ieee ${IEEE_SOURCES})
 rel_list(t_fixed ${FIXED_SOURCES})
 rel_list(t_public ${PUBLIC_HEADERS})
 rel_list(t_private ${private_headers})
@@ -46,8 +47,10 @@ set(block "${begin_marker}
 Sources, every scalar type:
 
 ${t_sources}
-Needed by the fixed-point build (`EKF_SCALAR_FIXED`) only; in the other builds it compiles
-too and nothing calls it (leave it out, or let `--gc-sections` drop it):
+And those of your scalar type: float (`EKF_SCALAR_FLOAT`) or double (`EKF_SCALAR_DOUBLE`),
+
+${t_ieee}
+or fixed point (`EKF_SCALAR_FIXED`),
 
 ${t_fixed}
 Public headers (what your code includes; CMake installs these to `include/attekf/`):
@@ -60,7 +63,8 @@ Optional, the model library (`docs/models.md`), on top of the above:
 
 ${t_msources}${t_mheaders}
 Copy them into one directory (`attekf/` below; the includes are by file name) and build
-with the scalar type defined on every compile line:
+with the scalar type defined on every compile line (a source of the other scalar types stops
+the build with an `#error` that names the right ones):
 
 ```sh
 ${cmd_float}
@@ -100,10 +104,10 @@ foreach(v CC OUT)
     message(FATAL_ERROR "PortingDoc.cmake: -D${v}=... missing")
   endif()
 endforeach()
+set(main_c "${OUT}/main.c.in")
 file(REMOVE_RECURSE "${OUT}")
-file(MAKE_DIRECTORY "${OUT}/attekf")
-file(COPY ${CORE_SOURCES} ${FIXED_SOURCES} ${core_headers} DESTINATION "${OUT}/attekf")
-file(WRITE "${OUT}/main.c" "#include <stdio.h>
+file(MAKE_DIRECTORY "${OUT}")
+file(WRITE "${main_c}" "#include <stdio.h>
 #include \"att.h\"
 /* Level, at rest, 100 Hz: aligned after align_samples, then EKF_OK on every sample. */
 int main(void)
@@ -130,6 +134,14 @@ int main(void)
 }
 ")
 foreach(scalar FLOAT DOUBLE FIXED)
+  file(REMOVE_RECURSE "${OUT}/attekf")
+  file(MAKE_DIRECTORY "${OUT}/attekf")
+  if(scalar STREQUAL "FIXED")
+    file(COPY ${CORE_SOURCES} ${FIXED_SOURCES} ${core_headers} DESTINATION "${OUT}/attekf")
+  else()
+    file(COPY ${CORE_SOURCES} ${IEEE_SOURCES} ${core_headers} DESTINATION "${OUT}/attekf")
+  endif()
+  configure_file("${main_c}" "${OUT}/main.c" COPYONLY)
   string(REPLACE "EKF_SCALAR_FLOAT" "EKF_SCALAR_${scalar}" cmd "${cmd_float}")
   string(REGEX REPLACE "^cc " "" cmd "${cmd}")
   separate_arguments(args UNIX_COMMAND "${cmd}")

@@ -77,9 +77,15 @@ def build(args):
     instr = os.path.join(OUT, "obj", "instr.o")
     run(base + ["-c", os.path.join(ROOT, "tests", "ranges", "instr.c"), "-o", instr])
     objs.append(instr)
+    # the Python extension module of the double build (host_tools/native), linked with them
     native = os.path.join(ROOT, "host_tools", "native")
-    lib = os.path.join(OUT, "lib", "libattekf_native_d.so")
-    run(base + forced + ["-I", native, "-shared", os.path.join(native, "attekf_native.c")] + objs + ["-o", lib, "-lm"])
+    py = os.path.join(ROOT, ".venv", "bin", "python")
+    inc_py, inc_np, suffix = run([py, "-c", "import sysconfig, numpy; print(sysconfig.get_paths()['include']); "
+                                  "print(numpy.get_include()); print(sysconfig.get_config_var('EXT_SUFFIX'))"]).split()
+    lib = os.path.join(OUT, "lib", "_core_d" + suffix)
+    core = [os.path.join(native, f) for f in ("core_module.c", "core_filter.c", "core_io.c")]
+    run(base + forced + ["-I", native, "-isystem", inc_py, "-isystem", inc_np, "-DCORE_MODULE=_core_d",
+                         '-DCORE_LAYOUT="instrumented"', "-shared"] + core + objs + ["-o", lib, "-lm"])
     drivers = {}
     support = os.path.join(ROOT, "tests", "c", "support")
     for name, test in (("stress", "test_att_stress.c"), ("envelope", "test_fixed_envelope.c")):

@@ -24,7 +24,7 @@ log() { printf '[setup] %s\n' "$*"; }
 
 # --- Debian packages ---------------------------------------------------------------
 APT_PACKAGES=(
-  build-essential cmake ninja-build git pkgconf python3 python3-venv python3-pip
+  build-essential cmake ninja-build git pkgconf python3 python3-dev python3-venv python3-pip
   gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm
   libstdc++-arm-none-eabi-newlib
   user-mode-linux kmod iproute2 can-utils
@@ -69,15 +69,17 @@ log "HIL: ${hil_kernel#vcan_run: }"
 # The interpreter is the machine's python3 (3.11 here); everything else is pinned.
 VENV="$ROOT/.venv"
 LOCK="$ROOT/host_tools/requirements.lock"
+LOCK_DRONECAN="$ROOT/host_tools/requirements-dronecan.lock"
 STAMP="$VENV/.attekf-lock.sha256"
 if [ ! -x "$VENV/bin/python" ]; then
   log "creating $VENV"
   python3 -m venv "$VENV"
 fi
-want="$(sha256sum "$LOCK" "$ROOT/host_tools/pyproject.toml" | sha256sum | cut -d' ' -f1)"
+want="$(sha256sum "$LOCK" "$LOCK_DRONECAN" "$ROOT/host_tools/pyproject.toml" | sha256sum | cut -d' ' -f1)"
 if [ ! -f "$STAMP" ] || [ "$(cat "$STAMP")" != "$want" ]; then
   log "installing pinned Python packages"
   "$VENV/bin/pip" install -q --disable-pip-version-check -r "$LOCK"
+  "$VENV/bin/pip" install -q --disable-pip-version-check --no-deps --require-hashes -r "$LOCK_DRONECAN"
   # Editable: Python from host_tools/, the C libraries from build/host (built below); the
   # build backend (scikit-build-core) comes pinned from the lock, hence no build isolation.
   "$VENV/bin/pip" install -q --disable-pip-version-check --no-deps --no-build-isolation -e "$ROOT/host_tools"
@@ -86,7 +88,7 @@ else
   log "Python packages present"
 fi
 
-# --- Build (host, float and double cores, tests, shared library for the binding) -------
+# --- Build (host, the three scalar builds, tests, the Python extension modules) --------
 log "configuring and building build/host"
 cmake -S "$ROOT" -B "$ROOT/build/host" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
       -DPython3_EXECUTABLE="$VENV/bin/python" >/dev/null

@@ -104,8 +104,9 @@ grep -h "^ATTEKF-SKIP:" "$ROOT/build/host/Testing/Temporary/LastTest.log" 2>/dev
 step "Cortex-M builds under QEMU (scripts/test_target.sh)" "$ROOT/scripts/test_target.sh"
 # Beside pytest, which keeps one core busy (one process; the HIL's guests have one virtual
 # CPU), two stages that keep the other one busy, held to one job each:
-# - the pip package as a user gets it: sdist -> wheel (CMake) -> a fresh virtual environment
-#   outside the repository, every command and the Python API there (tests/package/);
+# - the pip package as a user gets it: sdist -> platform wheel (CMake) -> a fresh virtual
+#   environment outside the repository without a C compiler, numpy alone then the extras, every
+#   command and the Python API there (tests/package/);
 # - static analysis (docs/reliability.md), in build/static.
 package_stage() {
   CMAKE_BUILD_PARALLEL_LEVEL=1 "$ROOT/.venv/bin/python" -m pytest "$ROOT/tests/package" -q -ra -p no:cacheprovider
@@ -113,7 +114,7 @@ package_stage() {
 static_stage() {
   ATTEKF_JOBS=1 "$ROOT/scripts/static_analysis.sh"
 }
-beside "Python package from its sdist in a fresh virtual environment (tests/package)" package_stage \
+beside "Python package: its wheel in a fresh virtual environment without a compiler (tests/package)" package_stage \
        "static analysis: cppcheck + clang-tidy (scripts/static_analysis.sh)" static_stage
 step "pytest" "$ROOT/.venv/bin/python" -m pytest "$ROOT/tests/python" -q -ra --durations=15
 beside_wait

@@ -1,15 +1,21 @@
 /*
  * att.c - the attitude estimator (see att.h; equations in docs/derivation.md): lifecycle,
- * the step, the public stages and the outputs. The stages themselves are in att_align.c,
- * att_predict.c and att_update.c; the covariance behind att_cov.h.
+ * the step and the public stages: validation, the saved copy, the stages in order, the commit.
+ * The stages are in att_align.c, att_predict.c, att_gyro.c, att_accel.c and att_mag.c; the
+ * outputs in att_outputs.c; the covariance behind att_cov.h.
  */
 #include "att.h"
 
 #include <stddef.h>
 #include <string.h>
 
-#include "att_internal.h"
-#include "att_model.h"
+#include "att_accel.h"
+#include "att_align.h"
+#include "att_gyro.h"
+#include "att_mag.h"
+#include "att_predict.h"
+#include "att_settings.h"
+#include "att_state.h"
 #include "ekf_util.h"
 
 ekf_status_t att_init(att_ekf_t *f, const att_settings_t *settings)
@@ -25,9 +31,36 @@ ekf_status_t att_init(att_ekf_t *f, const att_settings_t *settings)
     }
     *f = zero;
     f->settings = *settings;
+    return att_reset(f);
+}
+
+ekf_status_t att_reset(att_ekf_t *f)
+{
+    const att_vars_t zero = {0};
+    if (f == NULL) {
+        return EKF_ERR_NULL;
+    }
+    f->vars = zero;
     att_rest_reset(&f->vars.rest);
-    att_bias_reset(&f->vars.bias, &settings->bias);
+    att_bias_reset(&f->vars.bias, &f->settings.bias);
     att_consider_reset(&f->vars.consider);
+    return EKF_OK;
+}
+
+ekf_status_t att_set_settings(att_ekf_t *f, const att_settings_t *settings)
+{
+    ekf_status_t st;
+    if (f == NULL) {
+        return EKF_ERR_NULL;
+    }
+    st = att_settings_check(settings);
+    if (st != EKF_OK) {
+        return st;
+    }
+    if (!att_settings_same_fixed_part(&f->settings, settings)) {
+        return EKF_ERR_SETTINGS; /* a setting that needs att_init changed */
+    }
+    f->settings = *settings;
     return EKF_OK;
 }
 
@@ -68,8 +101,6 @@ static ekf_status_t check_dt(const att_settings_t *s, ekf_scalar_t dt)
     return EKF_OK;
 }
 
-static int is_error(ekf_status_t st) { return st != EKF_OK && st != EKF_GATED && st != EKF_SKIPPED; }
-
 /* A refused call: its one error counter, nothing else. */
 static ekf_status_t refuse(att_ekf_t *f, ekf_status_t st)
 {
@@ -85,28 +116,6 @@ static ekf_status_t refuse(att_ekf_t *f, ekf_status_t st)
  * its error counter (att.h). Bad input is refused before the copy is taken. One copy of
  * sizeof(att_vars_t) per call on the normal path (docs/architecture.md, "Contract"). */
 
-void att_vars_copy(att_vars_t *dst, const att_vars_t *src)
-{
-#if defined(__GNUC__) && defined(__thumb2__)
-    /* 8 words per ldm/stm pair: 4 instructions per 32 bytes, where the C library's memcpy
-     * spends 16 ldr/str pairs on 64 (docs/performance.md, "Commit") */
-    unsigned char *d = (unsigned char *)dst;
-    const unsigned char *s = (const unsigned char *)src;
-    unsigned n = (unsigned)(sizeof *dst / 32u);
-    __asm__ volatile("1:\n\t"
-                     "ldmia %[s]!, {r2, r3, r4, r5, r6, r8, r9, r10}\n\t"
-                     "stmia %[d]!, {r2, r3, r4, r5, r6, r8, r9, r10}\n\t"
-                     "subs %[n], %[n], #1\n\t"
-                     "bne 1b"
-                     : [d] "+r"(d), [s] "+r"(s), [n] "+r"(n)
-                     :
-                     : "r2", "r3", "r4", "r5", "r6", "r8", "r9", "r10", "cc", "memory");
-    memcpy(d, s, sizeof *dst % 32u);
-#else
-    memcpy(dst, src, sizeof *dst);
-#endif
-}
-
 /* A call refused after its stages ran: the variables back, then the one error counter. */
 static ekf_status_t restore(att_ekf_t *f, const att_vars_t *saved, ekf_status_t st)
 {
@@ -120,70 +129,6 @@ static ekf_status_t commit(att_ekf_t *f, const att_vars_t *saved)
 {
     if (att_guard_covariance(&f->vars, &f->settings) != EKF_OK || !att_state_finite(f->vars.x)) {
         return restore(f, saved, EKF_ERR_NUMERIC);
-    }
-    return EKF_OK;
-}
-
-/* ---- helpers shared by the stages (att_internal.h) ---- */
-
-typedef char att_state_finite_needs_9_states[(ATT_N == 9) ? 1 : -1];
-
-int att_state_finite(const ekf_scalar_t x[ATT_N])
-{
-    ekf_scalar_t acc = ekf_finite_acc(ekf_finite_acc(ekf_finite_acc(EKF_C(0), x[0]), x[1]), x[2]);
-    acc = ekf_finite_acc(ekf_finite_acc(ekf_finite_acc(acc, x[3]), x[4]), x[5]);
-    acc = ekf_finite_acc(ekf_finite_acc(ekf_finite_acc(acc, x[6]), x[7]), x[8]);
-    return acc == EKF_C(0);
-}
-
-ekf_scalar_t att_norm3(const ekf_scalar_t vec[3])
-{
-    return ekf_sqrt(ekf_add(ekf_add(ekf_sq(vec[0]), ekf_sq(vec[1])), ekf_sq(vec[2])));
-}
-
-void att_update_gimbal_flag(att_vars_t *v, const att_settings_t *s)
-{
-    if (ekf_abs(v->x[ATT_THETA]) > s->gimbal_limit) {
-        v->flags |= ATT_FLAG_GIMBAL_LOCK;
-    } else {
-        v->flags &= ~ATT_FLAG_GIMBAL_LOCK;
-    }
-}
-
-int att_normalise(att_vars_t *v)
-{
-    if (att_model_normalise(v->x)) {
-        /* theta -> +-pi - theta and thetad -> -thetad: their rows and columns change sign */
-        att_cov_negate_state(&v->cov, ATT_THETA);
-        att_cov_negate_state(&v->cov, ATT_THETAD);
-        att_bias_remap(&v->bias);
-        return 1;
-    }
-    return 0;
-}
-
-/* Rounding in F P F^T and in the updates can make P indefinite when it is ill-conditioned;
- * repair it once per public call, and say so; refuse what rounding cannot explain
- * (docs/derivation.md, "Covariance bounds"). */
-ekf_status_t att_guard_covariance(att_vars_t *v, const att_settings_t *s)
-{
-    int rounds;
-    if ((v->flags & ATT_FLAG_ALIGNED) == 0u) {
-        return EKF_OK;
-    }
-    /* The updates floor the variances they reduce, but the prediction can reduce one too
-     * (F P F^T with a negative correlation, and no process noise on it if angle_walk = 0):
-     * the guard floors them first (raising a diagonal entry keeps P positive
-     * (semi-)definite), then checks and if need be repairs. */
-    rounds = att_cov_guard(&v->cov, ATT_PD_MARGIN, s->var_floor);
-    if (rounds < 0) {
-        return EKF_ERR_NUMERIC; /* a non-finite P, or a variance negative beyond rounding */
-    }
-    if (rounds > 0) {
-        v->flags |= ATT_FLAG_COV_REPAIRED;
-        ekf_count(&v->diag.cov_repairs);
-    } else {
-        v->flags &= ~ATT_FLAG_COV_REPAIRED;
     }
     return EKF_OK;
 }
@@ -224,17 +169,19 @@ ekf_status_t att_predict(att_ekf_t *f, ekf_scalar_t dt)
         return refuse(f, st);
     }
     att_vars_copy(&saved, &f->vars);
-    st = att_stage_predict(&f->vars, &f->settings, dt);
-    if (is_error(st)) {
+    st = att_stage_predict(&f->vars, &f->settings, dt, NULL);
+    if (ekf_status_is_error(st)) {
         return restore(f, &saved, st);
     }
     return (commit(f, &saved) == EKF_OK) ? st : EKF_ERR_NUMERIC;
 }
 
-typedef ekf_status_t (*sensor_stage_t)(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t vec[3]);
+typedef ekf_status_t (*sensor_stage_t)(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t vec[3],
+                                       ekf_scalar_t dt);
 
-/* att_update_gyro, _accel, _mag: aligned filter, a valid vector, one stage. */
-static ekf_status_t public_update(att_ekf_t *f, const ekf_scalar_t vec[3], ekf_scalar_t range, sensor_stage_t stage)
+/* att_update_gyro, _accel, _mag: aligned filter, a valid vector and interval, one stage. */
+static ekf_status_t public_update(att_ekf_t *f, const ekf_scalar_t vec[3], ekf_scalar_t dt, ekf_scalar_t range,
+                                  sensor_stage_t stage)
 {
     att_vars_t saved;
     ekf_status_t st;
@@ -242,30 +189,33 @@ static ekf_status_t public_update(att_ekf_t *f, const ekf_scalar_t vec[3], ekf_s
         return EKF_ERR_NULL;
     }
     st = ((f->vars.flags & ATT_FLAG_ALIGNED) == 0u) ? EKF_ERR_NOT_INITIALISED : check_vec(vec, range);
+    if (st == EKF_OK) {
+        st = check_dt(&f->settings, dt);
+    }
     if (st != EKF_OK) {
         return refuse(f, st);
     }
     att_vars_copy(&saved, &f->vars);
-    st = stage(&f->vars, &f->settings, vec);
-    if (is_error(st)) {
+    st = stage(&f->vars, &f->settings, vec, dt);
+    if (ekf_status_is_error(st)) {
         return restore(f, &saved, st);
     }
     return (commit(f, &saved) == EKF_OK) ? st : EKF_ERR_NUMERIC;
 }
 
-ekf_status_t att_update_gyro(att_ekf_t *f, const ekf_scalar_t gyro[3])
+ekf_status_t att_update_gyro(att_ekf_t *f, const ekf_scalar_t gyro[3], ekf_scalar_t dt)
 {
-    return public_update(f, gyro, (f != NULL) ? f->settings.gyro_range : EKF_C(0), att_stage_gyro);
+    return public_update(f, gyro, dt, (f != NULL) ? f->settings.gyro_range : EKF_C(0), att_stage_gyro);
 }
 
-ekf_status_t att_update_accel(att_ekf_t *f, const ekf_scalar_t accel[3])
+ekf_status_t att_update_accel(att_ekf_t *f, const ekf_scalar_t accel[3], ekf_scalar_t dt)
 {
-    return public_update(f, accel, (f != NULL) ? f->settings.accel_range : EKF_C(0), att_stage_accel);
+    return public_update(f, accel, dt, (f != NULL) ? f->settings.accel_range : EKF_C(0), att_stage_accel);
 }
 
-ekf_status_t att_update_mag(att_ekf_t *f, const ekf_scalar_t mag[3])
+ekf_status_t att_update_mag(att_ekf_t *f, const ekf_scalar_t mag[3], ekf_scalar_t dt)
 {
-    return public_update(f, mag, (f != NULL) ? f->settings.mag_range : EKF_C(0), att_stage_mag);
+    return public_update(f, mag, dt, (f != NULL) ? f->settings.mag_range : EKF_C(0), att_stage_mag);
 }
 
 /* ---- the step ---- */
@@ -281,10 +231,10 @@ static void report_all(att_step_report_t *rep, ekf_status_t st)
 /* The first error of the report (order predict, gyro, accel, mag), EKF_OK if none. */
 static ekf_status_t first_error(const att_step_report_t *rep)
 {
-    return is_error(rep->predict) ? rep->predict
-           : is_error(rep->gyro)  ? rep->gyro
-           : is_error(rep->accel) ? rep->accel
-           : is_error(rep->mag)   ? rep->mag
+    return ekf_status_is_error(rep->predict) ? rep->predict
+           : ekf_status_is_error(rep->gyro)  ? rep->gyro
+           : ekf_status_is_error(rep->accel) ? rep->accel
+           : ekf_status_is_error(rep->mag)   ? rep->mag
                                   : EKF_OK;
 }
 
@@ -316,16 +266,16 @@ static ekf_status_t validate_sample(const att_ekf_t *f, const att_sample_t *sm, 
         return EKF_OK;
     }
     /* only the inputs at fault keep their error */
-    if (!is_error(rep->predict)) {
+    if (!ekf_status_is_error(rep->predict)) {
         rep->predict = EKF_SKIPPED;
     }
-    if (!is_error(rep->gyro)) {
+    if (!ekf_status_is_error(rep->gyro)) {
         rep->gyro = EKF_SKIPPED;
     }
-    if (!is_error(rep->accel)) {
+    if (!ekf_status_is_error(rep->accel)) {
         rep->accel = EKF_SKIPPED;
     }
-    if (!is_error(rep->mag)) {
+    if (!ekf_status_is_error(rep->mag)) {
         rep->mag = EKF_SKIPPED;
     }
     return st;
@@ -340,89 +290,108 @@ static ekf_status_t discard(att_ekf_t *f, const att_vars_t *saved, att_step_repo
 }
 
 /* The gyroscope stage of a sample: a saturated reading widens the rate uncertainty, a
- * normal one is fused. */
+ * normal one is fused (its variance needs the sample's interval: the sample that completes
+ * the alignment may have none, and its gyro is then not fused). */
 static ekf_status_t gyro_stage(att_vars_t *w, const att_settings_t *s, const att_sample_t *sm)
 {
     if ((sm->valid & ATT_GYRO_SATURATED) != 0u) {
         return att_stage_gyro_saturated(w, s, sm->gyro);
     }
     if ((sm->valid & ATT_HAS_GYRO) != 0u) {
-        return att_stage_gyro(w, s, sm->gyro);
+        return (check_dt(s, sm->dt) == EKF_OK) ? att_stage_gyro(w, s, sm->gyro, sm->dt) : EKF_SKIPPED;
     }
     return EKF_OK;
 }
 
-ekf_status_t att_step(att_ekf_t *f, const att_sample_t *sample, att_step_report_t *report)
+/* Rest detection sees every complete sample, from the first one on, so that the initial rest
+ * already yields the gyroscope offset; while aligning, only samples with a valid time step
+ * (the first one after a start has none). */
+static void rest_stage(att_vars_t *w, const att_settings_t *s, const att_sample_t *sm)
+{
+    w->flags &= ~ATT_FLAG_AT_REST;
+    if ((sm->valid & (ATT_HAS_GYRO | ATT_HAS_ACCEL | ATT_GYRO_SATURATED)) == (ATT_HAS_GYRO | ATT_HAS_ACCEL) &&
+        check_dt(s, sm->dt) == EKF_OK && att_rest_update(&w->rest, &s->rest, sm->gyro, sm->accel, sm->dt)) {
+        w->flags |= ATT_FLAG_AT_REST;
+        /* the rest offset averaged this sample with weight dt / bias_time (att_rest.c): the
+         * offset learned in motion hands over to it at that rate */
+        att_bias_rest(&w->bias, ekf_div(sm->dt, w->rest.bias_time), ekf_div(ekf_sq(s->gyro_noise), sm->dt));
+    }
+}
+
+/* The stages of an aligned filter's step, in order, each status in its slot of rep; *last
+ * the slot of the last stage that ran. The gyro sample describes the rotation over the
+ * interval ending now: it is fused before the propagation, so the angles integrate it
+ * (docs/derivation.md, "Step order"). Returns the slot of the first error, or NULL. */
+static ekf_status_t *aligned_stages(att_vars_t *w, const att_settings_t *s, const att_sample_t *sm,
+                                    att_step_report_t *rep, ekf_status_t **last, att_trace_t *trace)
+{
+    rep->gyro = gyro_stage(w, s, sm);
+    if (ekf_status_is_error(rep->gyro)) {
+        return &rep->gyro;
+    }
+    rep->predict = att_stage_predict(w, s, sm->dt, trace);
+    if (ekf_status_is_error(rep->predict)) {
+        return &rep->predict;
+    }
+    ekf_count(&w->diag.steps);
+    if ((sm->valid & ATT_HAS_ACCEL) != 0u) {
+        *last = &rep->accel;
+        rep->accel = att_stage_accel(w, s, sm->accel, sm->dt);
+        if (ekf_status_is_error(rep->accel)) {
+            return &rep->accel;
+        }
+    }
+    if ((sm->valid & ATT_HAS_MAG) != 0u) {
+        *last = &rep->mag;
+        rep->mag = att_stage_mag(w, s, sm->mag, sm->dt);
+        if (ekf_status_is_error(rep->mag)) {
+            return &rep->mag;
+        }
+    }
+    return NULL;
+}
+
+ekf_status_t att_step_traced(att_ekf_t *f, const att_sample_t *sample, att_step_report_t *report, att_trace_t *trace)
 {
     att_step_report_t local = {EKF_OK, EKF_OK, EKF_OK, EKF_OK}; /* set below; initialised for the analysers */
     att_step_report_t *rep = (report != NULL) ? report : &local;
-    const att_settings_t *s;
     ekf_status_t *last = &rep->predict; /* the slot of the last stage that ran */
-    att_vars_t saved, *w;
+    ekf_status_t *failed = NULL;
+    att_vars_t saved;
     ekf_status_t st;
 
+    if (trace != NULL) {
+        trace->predicted = 0;
+    }
     if (f == NULL || sample == NULL) {
         report_all(rep, EKF_ERR_NULL);
         return (f == NULL) ? EKF_ERR_NULL : refuse(f, EKF_ERR_NULL);
     }
-    s = &f->settings;
     st = validate_sample(f, sample, rep);
     if (st != EKF_OK) {
         return refuse(f, st);
     }
     att_vars_copy(&saved, &f->vars);
-    w = &f->vars; /* the stages run in place */
-    /* rest detection sees every complete sample, from the first one on, so that the
-     * initial rest already yields the gyroscope offset; while aligning, only samples with
-     * a valid time step (the first one after a start has none) */
-    w->flags &= ~ATT_FLAG_AT_REST;
-    if ((sample->valid & (ATT_HAS_GYRO | ATT_HAS_ACCEL | ATT_GYRO_SATURATED)) == (ATT_HAS_GYRO | ATT_HAS_ACCEL) &&
-        check_dt(s, sample->dt) == EKF_OK &&
-        att_rest_update(&w->rest, &s->rest, sample->gyro, sample->accel, sample->dt)) {
-        w->flags |= ATT_FLAG_AT_REST;
-        /* the rest offset averaged this sample with weight dt / bias_time (att_rest.c): the
-         * offset learned in motion hands over to it at that rate */
-        att_bias_rest(&w->bias, ekf_div(sample->dt, w->rest.bias_time), ekf_sq(s->gyro_noise));
-    }
-    if ((w->flags & ATT_FLAG_ALIGNED) == 0u) {
+    rest_stage(&f->vars, &f->settings, sample); /* the stages run in place */
+    if ((f->vars.flags & ATT_FLAG_ALIGNED) == 0u) {
         /* averaging, then the alignment and the gyro of its last sample */
         last = &rep->accel;
-        rep->accel = att_stage_align_sample(w, s, sample);
-        if ((w->flags & ATT_FLAG_ALIGNED) != 0u) {
+        rep->accel = att_stage_align_sample(&f->vars, &f->settings, sample);
+        if ((f->vars.flags & ATT_FLAG_ALIGNED) != 0u) {
             last = &rep->gyro;
-            rep->gyro = gyro_stage(w, s, sample);
-            if (is_error(rep->gyro)) {
-                return discard(f, &saved, rep, &rep->gyro);
-            }
+            rep->gyro = gyro_stage(&f->vars, &f->settings, sample);
+            failed = ekf_status_is_error(rep->gyro) ? &rep->gyro : NULL;
         }
     } else {
-        /* The gyro sample describes the rotation over the interval ending now: fuse it
-         * before propagating, so the angles integrate it (docs/derivation.md, "Step order"). */
-        rep->gyro = gyro_stage(w, s, sample);
-        if (is_error(rep->gyro)) {
-            return discard(f, &saved, rep, &rep->gyro);
-        }
-        rep->predict = att_stage_predict(w, s, sample->dt);
-        if (is_error(rep->predict)) {
-            return discard(f, &saved, rep, &rep->predict);
-        }
-        ekf_count(&w->diag.steps);
-        if ((sample->valid & ATT_HAS_ACCEL) != 0u) {
-            last = &rep->accel;
-            rep->accel = att_stage_accel(w, s, sample->accel);
-            if (is_error(rep->accel)) {
-                return discard(f, &saved, rep, &rep->accel);
-            }
-        }
-        if ((sample->valid & ATT_HAS_MAG) != 0u) {
-            last = &rep->mag;
-            rep->mag = att_stage_mag(w, s, sample->mag);
-            if (is_error(rep->mag)) {
-                return discard(f, &saved, rep, &rep->mag);
-            }
-        }
+        failed = aligned_stages(&f->vars, &f->settings, sample, rep, &last, trace);
     }
-    if (commit(f, &saved) != EKF_OK) {
+    if (failed != NULL || commit(f, &saved) != EKF_OK) {
+        if (trace != NULL) {
+            trace->predicted = 0;
+        }
+        if (failed != NULL) {
+            return discard(f, &saved, rep, failed);
+        }
         report_all(rep, EKF_SKIPPED);
         *last = EKF_ERR_NUMERIC;
         return EKF_ERR_NUMERIC;
@@ -434,81 +403,7 @@ ekf_status_t att_step(att_ekf_t *f, const att_sample_t *sample, att_step_report_
                                     : rep->mag;
 }
 
-/* ---- outputs ---- */
-
-void att_get_euler(const att_ekf_t *f, ekf_scalar_t euler[3])
+ekf_status_t att_step(att_ekf_t *f, const att_sample_t *sample, att_step_report_t *report)
 {
-    euler[0] = f->vars.x[ATT_PHI];
-    euler[1] = f->vars.x[ATT_THETA];
-    euler[2] = f->vars.x[ATT_PSI];
+    return att_step_traced(f, sample, report, NULL);
 }
-
-void att_get_body_rates(const att_ekf_t *f, ekf_scalar_t w[3])
-{
-    w[0] = f->vars.x[ATT_P];
-    w[1] = f->vars.x[ATT_Q];
-    w[2] = f->vars.x[ATT_R];
-}
-
-void att_get_gyro_bias(const att_ekf_t *f, ekf_scalar_t b[3])
-{
-    const ekf_scalar_t m = f->settings.rest.bias_max;
-    int i;
-    for (i = 0; i < 3; ++i) {
-        b[i] = ekf_clamp(ekf_add(f->vars.rest.bias[i], f->vars.bias.b[i]), ekf_neg(m), m);
-    }
-}
-
-void att_get_euler_rates(const att_ekf_t *f, ekf_scalar_t e[3])
-{
-    e[0] = f->vars.x[ATT_PHID];
-    e[1] = f->vars.x[ATT_THETAD];
-    e[2] = f->vars.x[ATT_PSID];
-}
-
-void att_get_quaternion(const att_ekf_t *f, ekf_scalar_t q[4])
-{
-    att_model_euler_to_quat(f->vars.x[ATT_PHI], f->vars.x[ATT_THETA], f->vars.x[ATT_PSI], q);
-}
-
-void att_get_angle_covariance(const att_ekf_t *f, ekf_scalar_t c[6])
-{
-    const att_settings_t *s = &f->settings;
-    const att_vars_t *v = &f->vars;
-    c[0] = att_cov_var(&v->cov, ATT_PHI);
-    c[1] = att_cov_var(&v->cov, ATT_THETA);
-    c[2] = att_cov_var(&v->cov, ATT_PSI);
-    c[3] = att_cov_get(&v->cov, ATT_PHI, ATT_THETA);
-    c[4] = att_cov_get(&v->cov, ATT_PHI, ATT_PSI);
-    c[5] = att_cov_get(&v->cov, ATT_THETA, ATT_PSI);
-    if ((v->flags & ATT_FLAG_ALIGNED) == 0u) {
-        return;
-    }
-    att_bias_cov(&v->bias, c);
-    att_consider_add(&v->consider, c);
-    c[0] = ekf_add(c[0], ekf_sq(s->accel_ref_sigma));
-    c[1] = ekf_add(c[1], ekf_sq(s->accel_ref_sigma));
-    if ((v->flags & ATT_FLAG_HEADING_LIMITED) == 0u && v->mag_ref_norm > EKF_C(0)) {
-        c[2] = ekf_add(c[2], ekf_sq(s->mag_ref_sigma));
-    }
-    /* an unobserved heading is at most uniform: never report more than the cap */
-    c[2] = ekf_min(c[2], s->heading_var_max);
-}
-
-void att_get_variances(const att_ekf_t *f, ekf_scalar_t var[ATT_N])
-{
-    ekf_scalar_t c[6];
-    int i;
-    for (i = 0; i < ATT_N; ++i) {
-        var[i] = att_cov_var(&f->vars.cov, i);
-    }
-    att_get_angle_covariance(f, c);
-    var[ATT_PHI] = c[0];
-    var[ATT_THETA] = c[1];
-    var[ATT_PSI] = c[2];
-}
-
-void att_get_covariance(const att_ekf_t *f, ekf_scalar_t P[ATT_N * ATT_N]) { att_cov_to_full(&f->vars.cov, P); }
-const ekf_scalar_t *att_state(const att_ekf_t *f) { return f->vars.x; }
-uint32_t att_flags(const att_ekf_t *f) { return f->vars.flags; }
-const att_diag_t *att_diag(const att_ekf_t *f) { return &f->vars.diag; }

@@ -23,16 +23,22 @@
  * stages): it either succeeds, or it leaves the whole filter exactly as it was (state,
  * covariance, flags, every counter and diagnostic, rest detector, low-pass, clocks) except
  * its one error counter, diag.rejected (bad input) or diag.numeric (EKF_ERR_NUMERIC). Every
- * input is validated before the first write, and the stages run on a working copy that
- * replaces the filter's variables only when the whole call succeeded. EKF_GATED and
+ * input is validated before the first write; the call then saves the filter's variables in one
+ * copy, runs its stages on the variables themselves and puts the copy back if any stage or
+ * the guard at the end fails. EKF_GATED and
  * EKF_SKIPPED are not errors: the call was applied. After every successful call P is
- * symmetric positive definite with every variance >= var_floor (checked by the guard, and
- * repaired if rounding broke it: diag.cov_repairs, ATT_FLAG_COV_REPAIRED). The filter never
- * stores NaN or Inf. Outputs (att_get_*) only read.
+ * symmetric positive definite with every variance >= var_floor, checked by the guard at the
+ * end of the call: a P that rounding made indefinite by no more than a rounding-sized
+ * diagonal loading cures is repaired by that loading, and the repair reported as its own
+ * event (ATT_FLAG_COV_REPAIRED on that call, diag.cov_repairs); a P indefinite beyond that
+ * (a bug, or a filter whose memory was overwritten) refuses the call with EKF_ERR_NUMERIC,
+ * and every later call too until att_reset() or att_init() starts the filter afresh. The
+ * filter never stores NaN or Inf. Outputs (att_get_*) only read.
  */
 #ifndef ATT_H
 #define ATT_H
 
+#include <stddef.h>
 #include <stdint.h>
 
 #include "att_cov.h"
@@ -40,89 +46,19 @@
 #include "att_consider.h"
 #include "att_defs.h"
 #include "att_rest.h"
+#include "att_settings_table.h"
 #include "ekf.h"
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
-/* Settings: every tunable, with its unit. att_default_settings holds the defaults. */
+/* Settings: every tunable, one field per row of att_settings_table.h (the table gives each
+ * its unit, default, range and meaning; docs/architecture.md lists them). */
 typedef struct {
-    /* process model */
-    ekf_scalar_t rate_walk;       /* body-rate random walk, rad/s/sqrt(s): Var(dw) = rate_walk^2 dt */
-    ekf_scalar_t angle_walk;      /* extra angle random walk, rad/sqrt(s) (model error) */
-    ekf_scalar_t angle_walk_rate; /* angle random walk per rad/s of body rate, sqrt(s): the
-                                     gyroscope's scale-factor and misalignment errors, which
-                                     grow with the rate and integrate into the angles. Not
-                                     weighted by the filter (it would open the heading to
-                                     disturbed fields in every turn): carried in the reported
-                                     covariance (att_consider.h) */
-    ekf_scalar_t euler_rate_rel;  /* independent error per step of each Euler-rate state and of
-                                     each angle's increment, as a fraction of its variance
-                                     (dimensionless, > 0): the model error of the discrete
-                                     kinematics; keeps P well conditioned (docs/derivation.md,
-                                     "Conditioning") */
-    /* gyroscope */
-    ekf_scalar_t gyro_noise; /* white noise, 1 sigma per sample, rad/s */
-    ekf_scalar_t gyro_gate;  /* innovation gate, sigmas; 0 = off */
-    ekf_scalar_t gyro_range; /* |component| above this is EKF_ERR_RANGE, rad/s */
-    att_rest_settings_t rest; /* rest detection and gyroscope offset estimation (att_rest.h) */
-    att_bias_settings_t bias; /* gyroscope offset in motion and its uncertainty (att_bias.h) */
-    /* accelerometer */
-    ekf_scalar_t gravity;       /* magnitude of gravity, m/s^2 */
-    ekf_scalar_t accel_noise;   /* white noise incl. unmodelled motion, 1 sigma per axis, m/s^2 */
-    ekf_scalar_t accel_band;    /* | |a| - g | at which the noise variance is doubled, m/s^2
-                                   (de-weighting under linear acceleration); 0 = off */
-    ekf_scalar_t accel_reject;  /* | |a| - g | above which the sample is not fused, m/s^2 */
-    ekf_scalar_t accel_adapt_tau; /* s: time constant of the running mean of ( |a| - g )^2
-                                     (a: the low-passed force if accel_lpf_tau > 0), the
-                                     variance of the linear acceleration added to
-                                     accel_noise^2 (adaptive noise, "Linear acceleration"
-                                     in docs/derivation.md); 0 = off */
-    ekf_scalar_t accel_lpf_tau;   /* s: the accelerometer is low-passed in a frame that turns
-                                     with the body rates (an earth-fixed frame), so that
-                                     linear acceleration averages out and gravity does not
-                                     lag ("Linear acceleration" in docs/derivation.md); 0 = off.
-                                     Time constant of each stage. */
-    uint16_t accel_lpf_order;     /* stages of that low-pass, 1 or 2 (two: 40 dB/decade above
-                                     1 / (2 pi accel_lpf_tau); delay 2 accel_lpf_tau at DC) */
-    ekf_scalar_t accel_gate;    /* innovation gate, sigmas; 0 = off */
-    ekf_scalar_t accel_range;   /* |component| above this is EKF_ERR_RANGE, m/s^2 */
-    ekf_scalar_t accel_ref_sigma; /* rad: error of the accelerometer's gravity direction that
-                                     averaging cannot remove (calibration, mounting), added to
-                                     the reported roll and pitch variances */
-    /* magnetometer (heading, tilt-compensated) */
-    ekf_scalar_t mag_heading_noise; /* 1 sigma of the magnetic heading, rad */
-    ekf_scalar_t mag_gate;          /* innovation gate, sigmas; 0 = off */
-    ekf_scalar_t mag_norm_tol;      /* allowed | |m| / ref - 1 |, fraction; larger: disturbed */
-    ekf_scalar_t mag_dip_tol;       /* allowed |dip - ref dip|, rad; larger: disturbed */
-    ekf_scalar_t mag_reset_time;    /* s of continuous gating of an undisturbed field after which
-                                       the heading is reset to the magnetic heading, once the
-                                       accelerometer confirms the tilt; 0 = never */
-    ekf_scalar_t mag_ref_norm;      /* reference field norm (mag units); 0 = learn at alignment */
-    ekf_scalar_t mag_ref_dip;       /* reference dip, rad, positive down; used if mag_ref_norm > 0 */
-    ekf_scalar_t mag_declination;   /* magnetic declination, rad, east positive */
-    ekf_scalar_t mag_ref_sigma;     /* rad: error of the magnetic reference direction that
-                                       averaging cannot remove (local deviation of the field,
-                                       declination, calibration), added to the reported heading
-                                       variance while the heading is magnetometer-referenced */
-    ekf_scalar_t mag_range;         /* |component| above this is EKF_ERR_RANGE (mag units) */
-    /* robustness */
-    ekf_scalar_t gate_timeout;  /* s of continuous gating of the gyroscope or the
-                                   accelerometer after which its gate is bypassed until its
-                                   innovations pass it again; 0 = never. (The magnetometer
-                                   is not bypassed: a field that passes the norm and dip
-                                   tests can still be disturbed; see mag_reset_time.) */
-    ekf_scalar_t gimbal_limit;  /* |theta| above this (rad, < pi/2): kinematics clamped,
-                                   heading held, ATT_FLAG_GIMBAL_LOCK */
-    ekf_scalar_t dt_max;        /* longest accepted time step, s */
-    ekf_scalar_t heading_var_max; /* cap on the heading variance, rad^2 (unobserved heading), >= var_floor */
-    ekf_scalar_t var_floor;     /* floor of every state variance, rad^2 or (rad/s)^2; initial sigmas below it are raised to it */
-    /* initialisation */
-    ekf_scalar_t init_tilt_sigma;    /* rad */
-    ekf_scalar_t init_heading_sigma; /* rad, with magnetometer (without: sqrt(heading_var_max)) */
-    ekf_scalar_t init_rate_sigma;    /* rad/s */
-    uint16_t align_samples;          /* accelerometer samples averaged for the alignment, >= 1 */
+    ATT_SETTINGS_MAIN(ATT_SETTING_FIELD)
+    att_rest_settings_t rest; /* rest detection and gyroscope offset at rest (att_rest.h) */
+    att_bias_settings_t bias; /* gyroscope offset in motion (att_bias.h) */
 } att_settings_t;
 
 extern const att_settings_t att_default_settings;
@@ -162,7 +98,7 @@ typedef struct {
     uint32_t heading_resets;  /* heading set to the magnetic heading (mag_reset_time) */
     uint32_t gyro_saturated;  /* samples with ATT_GYRO_SATURATED (rate variances raised) */
     ekf_scalar_t gyro_ratio[3];
-    ekf_scalar_t accel_ratio[3];
+    ekf_scalar_t accel_ratio[2]; /* the tangent-plane components: about the roll and pitch axes */
     ekf_scalar_t mag_ratio;
     ekf_scalar_t accel_norm_error; /* last | |a| - g |, m/s^2 */
     ekf_scalar_t mag_norm_error;   /* last |m| / ref - 1 */
@@ -177,18 +113,30 @@ typedef struct {
     ekf_scalar_t mag_ref_norm;  /* in use (set or learned) */
     ekf_scalar_t mag_ref_dip;
     ekf_scalar_t mag_tan2_dip;  /* tan^2 of mag_ref_dip (set with the reference) */
+    ekf_scalar_t mag_avg_norm;  /* running means of the field's norm (mag units) and dip (rad) */
+    ekf_scalar_t mag_avg_dip;
+    ekf_scalar_t mag_new_clock; /* s: the reference's age while it settles, then how long a
+                                   field off it has stayed consistent with itself */
     ekf_scalar_t align_acc[3];  /* sums during alignment */
     ekf_scalar_t align_mag[3];
     uint16_t align_count;
     uint16_t align_mag_count;
     ekf_scalar_t gated_time[3]; /* s of continuous gating: gyro, accel, mag */
     ekf_scalar_t accel_dev_var; /* running mean of ( |a| - g )^2, (m/s^2)^2 */
+    ekf_scalar_t accel_hf_var;  /* running mean of |sample - low-pass|^2, (m/s^2)^2: the
+                                   accelerometer's short-term motion (steps, impacts, shaking) */
     ekf_scalar_t accel_lp[3];   /* low-passed specific force, body frame, m/s^2 (last stage) */
     ekf_scalar_t accel_lp1[3];  /* its first stage when accel_lpf_order is 2, m/s^2 */
     uint8_t accel_lp_valid;     /* accel_lp holds a sample */
+    uint8_t mag_settled;        /* the learned reference has settled (track_reference) */
+    uint8_t rate_unmeasured;    /* the last gyro sample was saturated: the rate state is a guess */
     uint8_t tilt_ok;            /* last accelerometer update: fused, no linear acceleration,
                                    every innovation within 3 sigma (heading resets need it) */
     ekf_scalar_t last_dt;       /* s, of the last prediction (time base of the running means) */
+    att_trig_t trig;            /* sines and cosines (no clamp) of trig_at's roll and pitch, rad: */
+    ekf_scalar_t trig_at[2];    /* left by the prediction for the measurement stage after it */
+    ekf_scalar_t dt_nom;        /* s: the sample interval without gaps (a running mean of the
+                                   steps that are not gaps; 0 before the first) */
     att_rest_t rest;            /* rest detector and gyroscope offset */
     att_bias_t bias;            /* gyroscope offset in motion (residual of the rest offset) */
     att_consider_t consider;    /* error sources carried in the reported covariance only */
@@ -234,14 +182,67 @@ typedef struct {
     ekf_status_t mag;
 } att_step_report_t;
 
+/* What the prediction of one att_step did, for a smoother that runs backwards over a
+ * recording (the host tools' Rauch-Tung-Striebel pass, docs/derivation.md, "Smoother"):
+ * the state and covariance before the prediction (after the step's gyroscope update) and
+ * after it (its process noise, gaps and caps included), and the transition Jacobian F of the
+ * mean's map between them (row-major). predicted is 0 for a step that ran no prediction
+ * (aligning, or refused). */
+typedef struct {
+    int predicted;
+    ekf_scalar_t x_pre[ATT_N];
+    ekf_scalar_t P_pre[ATT_N * ATT_N];
+    ekf_scalar_t F[ATT_N * ATT_N];
+    ekf_scalar_t x_pred[ATT_N];
+    ekf_scalar_t P_pred[ATT_N * ATT_N];
+} att_trace_t;
+
 /* Linked as att_init_for_EKF_SCALAR_<type>: see EKF_SCALAR_LINK_NAME in ekf_config.h. */
 #define att_init EKF_SCALAR_LINK_NAME(att_init)
 /* Validates settings and resets the filter to "not aligned". EKF_ERR_SETTINGS if a setting
  * is out of range (f is not written: a filter never initialised stays unusable). */
 ekf_status_t att_init(att_ekf_t *f, const att_settings_t *settings);
 
-/* 0 if the settings are usable, else EKF_ERR_SETTINGS (or EKF_ERR_NULL). */
+/* EKF_OK if the settings are usable, else EKF_ERR_SETTINGS (or EKF_ERR_NULL). */
 ekf_status_t att_settings_check(const att_settings_t *s);
+
+/* Back to "not aligned" with the settings it has (what att_init did after its check): the
+ * next samples align it again. EKF_ERR_NULL for NULL. */
+ekf_status_t att_reset(att_ekf_t *f);
+
+/* Changes the settings of a running filter: EKF_OK, the new settings in force from the next
+ * call, the state kept; EKF_ERR_SETTINGS (nothing changed) if they fail the check or change
+ * a setting that cannot change while the filter runs (live = 0 in att_settings_table.h:
+ * those need att_init). */
+ekf_status_t att_set_settings(att_ekf_t *f, const att_settings_t *settings);
+
+/* ---- the settings by name (the rows of att_settings_table.h) ---- */
+
+enum { ATT_SETTING_SCALAR = 0, ATT_SETTING_U16 = 1 };
+
+typedef struct {
+    const char *name;   /* "rate_walk", "rest.rest_gyro", "bias.walk", ... */
+    const char *unit;
+    uint16_t offset;    /* byte offset of the field in att_settings_t */
+    uint8_t type;       /* ATT_SETTING_SCALAR or ATT_SETTING_U16 */
+    uint8_t check;      /* what its square must be in the build's scalar (internal) */
+    uint8_t live;       /* 1: may change while the filter runs (att_set_settings) */
+    ekf_scalar_t lo;    /* accepted range, inclusive; a setting that bounds another (see */
+    ekf_scalar_t hi;    /* att_settings_table.h) is also checked by att_settings_check */
+} att_setting_info_t;
+
+/* Number of settings; their descriptions by index 0..count-1 (NULL beyond). */
+size_t att_setting_count(void);
+const att_setting_info_t *att_setting_info(size_t i);
+/* Index of the setting called name, or -1. */
+int att_setting_index(const char *name);
+/* The value of setting i (a count as a scalar). EKF_ERR_NULL, EKF_ERR_DIMENSION (no such
+ * setting). */
+ekf_status_t att_setting_get(const att_settings_t *s, size_t i, ekf_scalar_t *value);
+/* Sets setting i if value is within its own range (a count must be a whole number):
+ * EKF_OK, or EKF_ERR_SETTINGS / EKF_ERR_DIMENSION / EKF_ERR_NULL with *s unchanged. The
+ * bounds between settings are checked by att_settings_check. */
+ekf_status_t att_setting_set(att_settings_t *s, size_t i, ekf_scalar_t value);
 
 /* Sets the attitude from one accelerometer sample (m/s^2; EKF_ERR_RANGE if its norm is
  * below 0.1 g: no gravity direction) and optionally a magnetometer sample (NULL: heading 0
@@ -263,12 +264,17 @@ ekf_status_t att_align(att_ekf_t *f, const ekf_scalar_t accel[3], const ekf_scal
  * for accel, diag.accel_skipped). */
 ekf_status_t att_step(att_ekf_t *f, const att_sample_t *sample, att_step_report_t *report);
 
+/* att_step, and what its prediction did in *trace (att_trace_t; may be NULL). */
+ekf_status_t att_step_traced(att_ekf_t *f, const att_sample_t *sample, att_step_report_t *report, att_trace_t *trace);
+
 /* The stages, one call each (require an aligned filter; EKF_ERR_NOT_INITIALISED
  * otherwise), under the same contract. */
 ekf_status_t att_predict(att_ekf_t *f, ekf_scalar_t dt);
-ekf_status_t att_update_gyro(att_ekf_t *f, const ekf_scalar_t gyro[3]);
-ekf_status_t att_update_accel(att_ekf_t *f, const ekf_scalar_t accel[3]);
-ekf_status_t att_update_mag(att_ekf_t *f, const ekf_scalar_t mag[3]);
+/* dt (s): the interval the sample covers (its variance is the noise density^2 / dt), checked
+ * like att_predict's. */
+ekf_status_t att_update_gyro(att_ekf_t *f, const ekf_scalar_t gyro[3], ekf_scalar_t dt);
+ekf_status_t att_update_accel(att_ekf_t *f, const ekf_scalar_t accel[3], ekf_scalar_t dt);
+ekf_status_t att_update_mag(att_ekf_t *f, const ekf_scalar_t mag[3], ekf_scalar_t dt);
 
 /* Outputs. */
 void att_get_euler(const att_ekf_t *f, ekf_scalar_t euler[3]);       /* phi, theta, psi, rad */
@@ -277,6 +283,9 @@ void att_get_euler_rates(const att_ekf_t *f, ekf_scalar_t e[3]);     /* rad/s */
 /* Gyroscope offset (rad/s, body frame) subtracted from every gyro sample: learned at rest,
  * plus what the bias filter learned in motion (att_bias.h). */
 void att_get_gyro_bias(const att_ekf_t *f, ekf_scalar_t b[3]);
+/* 1-sigma uncertainty of that offset per body axis (rad/s): the square roots of the bias
+ * filter's variances (att_bias.h, Pb), which at rest follow the rest average's own. */
+void att_get_gyro_bias_sigma(const att_ekf_t *f, ekf_scalar_t sigma[3]);
 void att_get_quaternion(const att_ekf_t *f, ekf_scalar_t q[4]);      /* w, x, y, z: body to ENU */
 /* Variances of the state errors: the diagonal of P, and for the angles that of the
  * attitude covariance of att_get_angle_covariance (P plus the gyroscope offset's, the
@@ -290,6 +299,7 @@ void att_get_variances(const att_ekf_t *f, ekf_scalar_t var[ATT_N]);
 void att_get_angle_covariance(const att_ekf_t *f, ekf_scalar_t c[6]);
 void att_get_covariance(const att_ekf_t *f, ekf_scalar_t P[ATT_N * ATT_N]); /* all of P, row-major */
 const ekf_scalar_t *att_state(const att_ekf_t *f);                   /* x[ATT_N] */
+const att_settings_t *att_settings(const att_ekf_t *f);              /* the settings in force */
 uint32_t att_flags(const att_ekf_t *f);
 const att_diag_t *att_diag(const att_ekf_t *f);
 

@@ -39,7 +39,10 @@ void att_bias_reset(att_bias_t *bf, const att_bias_settings_t *s)
         bf->Pb[i] = v0;         /* variances */
         bf->Pb[3 + i] = EKF_C(0); /* covariances */
     }
+    bf->hold = EKF_C(0);
 }
+
+void att_bias_hold(att_bias_t *bf, ekf_scalar_t t) { bf->hold = ekf_max(bf->hold, t); }
 
 void att_bias_restart(att_bias_t *bf)
 {
@@ -49,38 +52,34 @@ void att_bias_restart(att_bias_t *bf)
     }
 }
 
-/* Entries of d1 (att_gen_f1_pattern, checked by test_att_bias): the angle rows' columns
- * p, q, r (dt W at the midpoint angles) and phi, theta (dt M, the angles' own coupling). */
-enum {
-    D1_PHI_P = 0, D1_PHI_Q = 1, D1_PHI_R = 2, D1_PHI_PHI = 3, D1_PHI_THETA = 4,
-    D1_THETA_Q = 7, D1_THETA_R = 8, D1_THETA_PHI = 9,
-    D1_PSI_Q = 11, D1_PSI_R = 12, D1_PSI_PHI = 13, D1_PSI_THETA = 14
-};
+/* Entry of d1 (att_gen_f1_pattern, checked by test_att_bias): angle row a (0..2), column j of
+ * the body rates and angles (0..5). */
+#define D1(a, j) ((a) * 6 + (j))
 
 void att_bias_predict(att_bias_t *bf, const att_bias_settings_t *s, const ekf_scalar_t d1[ATT_GEN_F1_NNZ],
                       ekf_scalar_t dt)
 {
-    /* The angles advance by dt W(m) w with the body rates w, which contain the residual
-     * offset one for one (the gyro update makes them follow the gyro): d angles+ / d b =
-     * (I + dt M(m)) V + dt W(m), the angle rows of F1 on the angle and body-rate columns
-     * (docs/derivation.md, "Gyroscope offset in motion"; M's yaw column is zero). The
-     * Euler-rate columns are left out: the Euler rates follow the body rates within a step,
-     * so their part is the same dependence once more at second order in dt. */
+    /* The angles advance with the body rates w, which contain the residual offset one for
+     * one (the gyro update makes them follow the gyro): d angles+ / d b = F_aa V + F_aw, the
+     * angle rows of F1 on the angle and body-rate columns (docs/derivation.md, "Gyroscope
+     * offset in motion"); F_aa = I + D1's angle block. */
     const ekf_scalar_t q = ekf_mul(ekf_sq(in_units(s->walk)), dt);
-    const ekf_scalar_t m00 = d1[D1_PHI_PHI], m01 = d1[D1_PHI_THETA], m10 = d1[D1_THETA_PHI];
-    const ekf_scalar_t m20 = d1[D1_PSI_PHI], m21 = d1[D1_PSI_THETA];
-    const ekf_scalar_t w0[3] = {d1[D1_PHI_P], d1[D1_PHI_Q], d1[D1_PHI_R]};
-    const ekf_scalar_t w1[3] = {EKF_C(0), d1[D1_THETA_Q], d1[D1_THETA_R]};
-    const ekf_scalar_t w2[3] = {EKF_C(0), d1[D1_PSI_Q], d1[D1_PSI_R]};
     ekf_scalar_t *const V = bf->V;
-    int j;
+    const ekf_scalar_t v00 = V[0], v01 = V[1], v02 = V[2], v10 = V[3], v11 = V[4], v12 = V[5];
+    int a, j;
+    for (a = 0; a < 3; ++a) {
+        const ekf_scalar_t *const d = &d1[D1(a, 0)];
+        ekf_scalar_t *const row = &V[3 * a];
+        /* row a of (I + D_aa) V + D_aw; the heading column of D_aa is zero in these
+         * coordinates (att_gen_f1_pattern keeps its place) */
+        row[0] = ekf_clamp(ekf_mac(ekf_mac(ekf_add(row[0], d[0]), d[3], v00), d[4], v10), ekf_neg(BIAS_V_MAX), BIAS_V_MAX);
+        row[1] = ekf_clamp(ekf_mac(ekf_mac(ekf_add(row[1], d[1]), d[3], v01), d[4], v11), ekf_neg(BIAS_V_MAX), BIAS_V_MAX);
+        row[2] = ekf_clamp(ekf_mac(ekf_mac(ekf_add(row[2], d[2]), d[3], v02), d[4], v12), ekf_neg(BIAS_V_MAX), BIAS_V_MAX);
+    }
     for (j = 0; j < 3; ++j) {
-        const ekf_scalar_t v0 = V[j], v1 = V[3 + j], v2 = V[6 + j];
-        V[j] = ekf_clamp(ekf_add(ekf_mac(ekf_mac(v0, m00, v0), m01, v1), w0[j]), ekf_neg(BIAS_V_MAX), BIAS_V_MAX);
-        V[3 + j] = ekf_clamp(ekf_add(ekf_mac(v1, m10, v0), w1[j]), ekf_neg(BIAS_V_MAX), BIAS_V_MAX);
-        V[6 + j] = ekf_clamp(ekf_add(ekf_mac(ekf_mac(v2, m20, v0), m21, v1), w2[j]), ekf_neg(BIAS_V_MAX), BIAS_V_MAX);
         bf->Pb[j] = ekf_add(bf->Pb[j], q);
     }
+    bf->hold = ekf_max(ekf_sub(bf->hold, dt), EKF_C(0));
 }
 
 int att_bias_update(att_bias_t *bf, int learn, const ekf_scalar_t h[3], const ekf_scalar_t pht[3], ekf_scalar_t nu,
@@ -104,7 +103,7 @@ int att_bias_update(att_bias_t *bf, int learn, const ekf_scalar_t h[3], const ek
         row[1] = ekf_mac(row[1], ki, g1);
         row[2] = ekf_mac(row[2], ki, g2);
     }
-    if (!learn) {
+    if (!learn || bf->hold > EKF_C(0)) {
         return 0;
     }
     s_var = ekf_mul(s_var, derate);
@@ -133,8 +132,12 @@ int att_bias_update(att_bias_t *bf, int learn, const ekf_scalar_t h[3], const ek
     d0 = ekf_mul(ekf_mul(p0, e), ATT_BIAS_UNIT);
     d1 = ekf_mul(ekf_mul(p1, e), ATT_BIAS_UNIT);
     d2 = ekf_mul(ekf_mul(p2, e), ATT_BIAS_UNIT);
-    /* the angles' error was V b: take the part now known out of them */
-    for (i = 0; i < 3; ++i) {
+    /* the angles' error was V b: take the part now known out of them, the heading only where
+     * the measurement is of the heading (the magnetometer): from the accelerometer the
+     * heading's share would rest on V's heading row alone, and a wrong offset would turn the
+     * heading faster than the offset itself does (docs/derivation.md, "Gyroscope offset in
+     * motion") */
+    for (i = 0; i < ((h[2] != EKF_C(0)) ? 3 : 2); ++i) {
         const ekf_scalar_t *const row = &V[3 * i];
         x_ang[i] = ekf_sub(x_ang[i], ekf_mac(ekf_mac(ekf_mul(row[0], d0), row[1], d1), row[2], d2));
     }

@@ -28,21 +28,16 @@
 
 #include "att_defs.h"
 #include "att_gen.h"
+#include "att_settings_table.h"
 #include "ekf_scalar.h"
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
+/* Its settings (rows ATT_SETTINGS_BIAS of att_settings_table.h; names "bias.*"). */
 typedef struct {
-    ekf_scalar_t sigma_init; /* rad/s: 1 sigma of the offset before the first rest, per axis */
-    ekf_scalar_t walk;       /* rad/s/sqrt(s): random walk of the offset (its instability) */
-    ekf_scalar_t mag_derate; /* >= 1: the magnetometer's innovations enter the offset's update
-                                with their variance times this (their errors are correlated
-                                across samples; docs/derivation.md, "Gyroscope offset in motion") */
-    uint16_t motion;         /* learn the offset in motion from 1: the accelerometer's innovations;
-                                2: the accelerometer's and the magnetometer's; 0: not at all (the
-                                uncertainty is still propagated into the reported covariance) */
+    ATT_SETTINGS_BIAS(ATT_SETTING_FIELD)
 } att_bias_settings_t;
 
 /* Unit of Pb, rad/s: the offset's variance spans 1e-9..1e-4 (rad/s)^2 and its growth per
@@ -53,6 +48,7 @@ typedef struct {
     ekf_scalar_t b[3];  /* rad/s, body frame: residual offset learned in motion */
     ekf_scalar_t Pb[6]; /* ATT_BIAS_UNIT^2 ((mrad/s)^2), packed: 00, 11, 22, 01, 02, 12 */
     ekf_scalar_t V[9];  /* s: d(phi, theta, psi) / d b, row-major (rows: angles) */
+    ekf_scalar_t hold;  /* s: no learning until this has run out (att_bias_hold) */
 } att_bias_t;
 
 /* Offset zero, covariance sigma_init^2 I, no sensitivity. */
@@ -65,9 +61,12 @@ void att_bias_restart(att_bias_t *bf);
 /* One prediction of length dt (s) with D1 = F1 - I, the angle rows of the transition's
  * first factor (att_gen_transition_factors, d1 in the order of att_gen_f1_pattern): V
  * follows the angles' dependence on the body rates, which carry the offset, and on the
- * angles; Pb grows by walk^2 dt. */
+ * angles; Pb grows by walk^2 dt; the hold runs down. */
 void att_bias_predict(att_bias_t *bf, const att_bias_settings_t *s, const ekf_scalar_t d1[ATT_GEN_F1_NNZ],
                       ekf_scalar_t dt);
+
+/* No learning for the next t seconds (evidence the offset cannot explain). */
+void att_bias_hold(att_bias_t *bf, ekf_scalar_t t);
 
 /* After an EKF scalar update with row h over the angles (h[3]: its entries at phi, theta,
  * psi) was fused: pht[3] = the angle rows of P h^T before the update, nu the innovation,

@@ -13,8 +13,6 @@
  */
 #include "att_cov_fx.h"
 
-#if defined(ATT_COV_FX)
-
 const uint8_t att_fx_ix[ATT_N][ATT_N] = {
     {0, 1, 2, 3, 4, 5, 6, 7, 8},          {1, 9, 10, 11, 12, 13, 14, 15, 16},
     {2, 10, 17, 18, 19, 20, 21, 22, 23},  {3, 11, 18, 24, 25, 26, 27, 28, 29},
@@ -592,6 +590,3 @@ int att_cov_guard(att_cov_t *c, ekf_scalar_t rel_margin, ekf_scalar_t var_floor)
     return att_cov_ensure_pd(c, rel_margin, var_floor);
 }
 
-#else
-typedef int att_cov_fx_not_selected_t; /* (ISO C: a translation unit declares something) */
-#endif

@@ -12,7 +12,9 @@
 
 #include "att_cov.h"
 
-#if defined(ATT_COV_FX)
+#if !defined(ATT_COV_FX)
+#error "att_cov_fx.h belongs to the fixed-point build"
+#endif
 
 #define ATT_FX_NP (ATT_N * (ATT_N + 1) / 2)
 #define ATT_FX_CF 29                             /* fraction bits of C (Q2.29) */
@@ -109,6 +111,5 @@ void att_fx_overflow(att_cov_t *c, int i);
  * Returns sh. */
 int att_fx_block_row(const int64_t *v, int32_t *w);
 
-#endif /* ATT_COV_FX */
 
 #endif /* ATT_COV_FX_H */

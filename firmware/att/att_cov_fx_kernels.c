@@ -13,8 +13,6 @@
  */
 #include "att_cov_fx.h"
 
-#if defined(ATT_COV_FX)
-
 #include <stddef.h>
 
 #include "ekf_util.h"
@@ -481,14 +479,12 @@ ekf_status_t att_cov_update_unit(att_cov_t *c, ekf_scalar_t x[ATT_N], int idx, e
     }
 }
 
-ekf_status_t att_cov_update_tilt(att_cov_t *c, ekf_scalar_t x[ATT_N], ekf_scalar_t h_phi, ekf_scalar_t h_theta,
-                                 ekf_scalar_t nu, ekf_scalar_t r_var, ekf_scalar_t gate, ekf_scalar_t var_floor,
-                                 ekf_innov_t *info)
+ekf_status_t att_cov_update_angles(att_cov_t *c, ekf_scalar_t x[ATT_N], const ekf_scalar_t h[3], ekf_scalar_t nu,
+                                   ekf_scalar_t r_var, ekf_scalar_t gate, ekf_scalar_t var_floor, ekf_innov_t *info)
 {
-    int64_t v64[ATT_N];
-    int32_t v[ATT_N], u3, u4;
-    int eta, i, b3, b4, m;
-    int64_t q64;
+    int64_t v64[ATT_N], q64 = 0;
+    int32_t v[ATT_N], u[3];
+    int eta, i, a, top = INT32_MIN, m;
     if (info != NULL) {
         info->innovation = EKF_C(0);
         info->variance = EKF_C(0);
@@ -497,33 +493,44 @@ ekf_status_t att_cov_update_tilt(att_cov_t *c, ekf_scalar_t x[ATT_N], ekf_scalar
     if (x == NULL) {
         return EKF_ERR_NULL;
     }
-    if (!ekf_isfinite(nu) || !ekf_isfinite(r_var) || !ekf_isfinite(h_phi) || !ekf_isfinite(h_theta)) {
+    if (!ekf_isfinite(nu) || !ekf_isfinite(r_var) || !ekf_isfinite(h[0]) || !ekf_isfinite(h[1]) ||
+        !ekf_isfinite(h[2])) {
         return EKF_ERR_NOT_FINITE;
     }
     if (!(r_var > EKF_C(0))) {
         return EKF_ERR_RANGE;
     }
-    if ((c->inf & ((1u << ATT_PHI) | (1u << ATT_THETA))) != 0u) {
-        if (info != NULL) {
-            info->innovation = nu;
-            info->variance = EKF_FX_INF;
+    for (a = 0; a < 3; ++a) {
+        if (h[a] != 0 && (c->inf & (1u << (ATT_PHI + a))) != 0u) {
+            if (info != NULL) {
+                info->innovation = nu;
+                info->variance = EKF_FX_INF;
+            }
+            return EKF_ERR_NUMERIC;
         }
-        return EKF_ERR_NUMERIC;
     }
     /* u = S H^T / 2^eta in Q0.31 with |u| < 1/4 */
-    b3 = (h_phi != 0) ? att_fx_abslen(h_phi) + c->e[ATT_PHI] : INT32_MIN;
-    b4 = (h_theta != 0) ? att_fx_abslen(h_theta) + c->e[ATT_THETA] : INT32_MIN;
-    if (b3 == INT32_MIN && b4 == INT32_MIN) {
+    for (a = 0; a < 3; ++a) {
+        if (h[a] != 0) {
+            const int b = att_fx_abslen(h[a]) + c->e[ATT_PHI + a];
+            top = (b > top) ? b : top;
+        }
+    }
+    if (top == INT32_MIN) {
         return update(c, x, (const int32_t[ATT_N]){0}, 0, 0, -1, nu, r_var, gate, var_floor, info);
     }
-    eta = ((b3 > b4) ? b3 : b4) - EKF_FX_FRAC + 2;
-    u3 = att_fx_to_c(h_phi, EKF_FX_FRAC + eta - 31 - c->e[ATT_PHI]);
-    u4 = att_fx_to_c(h_theta, EKF_FX_FRAC + eta - 31 - c->e[ATT_THETA]);
+    eta = top - EKF_FX_FRAC + 2;
+    for (a = 0; a < 3; ++a) {
+        u[a] = (h[a] != 0) ? att_fx_to_c(h[a], EKF_FX_FRAC + eta - 31 - c->e[ATT_PHI + a]) : 0;
+    }
     for (i = 0; i < ATT_N; ++i) {
-        v64[i] = (int64_t)c->c[att_fx_ix[i][ATT_PHI]] * u3 + (int64_t)c->c[att_fx_ix[i][ATT_THETA]] * u4; /* Q2.60 */
+        v64[i] = (int64_t)c->c[att_fx_ix[i][ATT_PHI]] * u[0] + (int64_t)c->c[att_fx_ix[i][ATT_THETA]] * u[1] +
+                 (int64_t)c->c[att_fx_ix[i][ATT_PSI]] * u[2]; /* Q2.60 */
     }
     /* q = u^T c u, then u (and v) scaled by 2^m so that q is in [1, 4) */
-    q64 = (int64_t)u3 * att_fx_to_c(v64[ATT_PHI], 31) + (int64_t)u4 * att_fx_to_c(v64[ATT_THETA], 31); /* Q2.60 */
+    for (a = 0; a < 3; ++a) {
+        q64 += (int64_t)u[a] * att_fx_to_c(v64[ATT_PHI + a], 31); /* Q2.60 */
+    }
     if (q64 < 0) {
         if (info != NULL) {
             info->innovation = nu;
@@ -538,6 +545,3 @@ ekf_status_t att_cov_update_tilt(att_cov_t *c, ekf_scalar_t x[ATT_N], ekf_scalar
     return update(c, x, v, att_fx_to_c(q64, 31 - 2 * m), eta - m, -1, nu, r_var, gate, var_floor, info);
 }
 
-#else
-typedef int att_cov_fx_kernels_not_selected_t; /* (ISO C: a translation unit declares something) */
-#endif

@@ -32,6 +32,9 @@ enum {
     ATT_N = 9
 };
 
+/* Entries of the lower triangle of a symmetric ATT_N x ATT_N matrix (the packed covariance). */
+#define ATT_COV_NP (ATT_N * (ATT_N + 1) / 2)
+
 /* sin/cos of roll and pitch at which a generated function is evaluated, and
  * sec(theta) = 1/cos(theta). Filled by att_trig() in att_model.c, which clamps pitch
  * to the gimbal limit so that secth stays finite. */

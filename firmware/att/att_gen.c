@@ -7,106 +7,9 @@
  */
 #include "att_gen.h"
 
-const ekf_nz_t att_gen_f_pattern[ATT_GEN_F_NNZ] = {
-    {ATT_PHI, ATT_P},
-    {ATT_PHI, ATT_Q},
-    {ATT_PHI, ATT_R},
-    {ATT_PHI, ATT_PHI},
-    {ATT_PHI, ATT_THETA},
-    {ATT_PHI, ATT_PHID},
-    {ATT_PHI, ATT_THETAD},
-    {ATT_THETA, ATT_Q},
-    {ATT_THETA, ATT_R},
-    {ATT_THETA, ATT_PHI},
-    {ATT_THETA, ATT_PHID},
-    {ATT_PSI, ATT_Q},
-    {ATT_PSI, ATT_R},
-    {ATT_PSI, ATT_PHI},
-    {ATT_PSI, ATT_THETA},
-    {ATT_PSI, ATT_PHID},
-    {ATT_PSI, ATT_THETAD},
-    {ATT_PHID, ATT_P},
-    {ATT_PHID, ATT_Q},
-    {ATT_PHID, ATT_R},
-    {ATT_PHID, ATT_PHI},
-    {ATT_PHID, ATT_THETA},
-    {ATT_PHID, ATT_PHID},
-    {ATT_PHID, ATT_THETAD},
-    {ATT_THETAD, ATT_P},
-    {ATT_THETAD, ATT_Q},
-    {ATT_THETAD, ATT_R},
-    {ATT_THETAD, ATT_PHI},
-    {ATT_THETAD, ATT_THETA},
-    {ATT_THETAD, ATT_PHID},
-    {ATT_THETAD, ATT_THETAD},
-    {ATT_PSID, ATT_P},
-    {ATT_PSID, ATT_Q},
-    {ATT_PSID, ATT_R},
-    {ATT_PSID, ATT_PHI},
-    {ATT_PSID, ATT_THETA},
-    {ATT_PSID, ATT_PHID},
-    {ATT_PSID, ATT_THETAD},
-    {ATT_PSID, ATT_PSID}
-};
-
-const ekf_nz_t att_gen_f1_pattern[ATT_GEN_F1_NNZ] = {{ATT_PHI, ATT_P}, {ATT_PHI, ATT_Q}, {ATT_PHI, ATT_R}, {ATT_PHI, ATT_PHI}, {ATT_PHI, ATT_THETA}, {ATT_PHI, ATT_PHID}, {ATT_PHI, ATT_THETAD}, {ATT_THETA, ATT_Q}, {ATT_THETA, ATT_R}, {ATT_THETA, ATT_PHI}, {ATT_THETA, ATT_PHID}, {ATT_PSI, ATT_Q}, {ATT_PSI, ATT_R}, {ATT_PSI, ATT_PHI}, {ATT_PSI, ATT_THETA}, {ATT_PSI, ATT_PHID}, {ATT_PSI, ATT_THETAD}};
+const ekf_nz_t att_gen_f1_pattern[ATT_GEN_F1_NNZ] = {{ATT_PHI, ATT_P}, {ATT_PHI, ATT_Q}, {ATT_PHI, ATT_R}, {ATT_PHI, ATT_PHI}, {ATT_PHI, ATT_THETA}, {ATT_PHI, ATT_PSI}, {ATT_THETA, ATT_P}, {ATT_THETA, ATT_Q}, {ATT_THETA, ATT_R}, {ATT_THETA, ATT_PHI}, {ATT_THETA, ATT_THETA}, {ATT_THETA, ATT_PSI}, {ATT_PSI, ATT_P}, {ATT_PSI, ATT_Q}, {ATT_PSI, ATT_R}, {ATT_PSI, ATT_PHI}, {ATT_PSI, ATT_THETA}, {ATT_PSI, ATT_PSI}};
 
 const ekf_nz_t att_gen_f2_pattern[ATT_GEN_F2_NNZ] = {{ATT_PHID, ATT_P}, {ATT_PHID, ATT_Q}, {ATT_PHID, ATT_R}, {ATT_PHID, ATT_PHI}, {ATT_PHID, ATT_THETA}, {ATT_PHID, ATT_PHID}, {ATT_THETAD, ATT_Q}, {ATT_THETAD, ATT_R}, {ATT_THETAD, ATT_PHI}, {ATT_THETAD, ATT_THETAD}, {ATT_PSID, ATT_Q}, {ATT_PSID, ATT_R}, {ATT_PSID, ATT_PHI}, {ATT_PSID, ATT_THETA}, {ATT_PSID, ATT_PSID}};
-
-void att_gen_cov_propagate(ekf_scalar_t P[ATT_N * ATT_N], const ekf_scalar_t d[ATT_GEN_F_NNZ])
-{
-    ekf_scalar_t a[6][ATT_N]; /* rows ATT_PHI, ATT_THETA, ATT_PSI, ATT_PHID, ATT_THETAD, ATT_PSID of A = F P */
-    int j;
-    for (j = 0; j < ATT_N; ++j) {
-        const ekf_scalar_t *pj = &P[j * ATT_N]; /* column j of P (symmetric) */
-        a[0][j] = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(pj[ATT_PHI], d[0], pj[ATT_P]), d[1], pj[ATT_Q]), d[2], pj[ATT_R]), d[3], pj[ATT_PHI]), d[4], pj[ATT_THETA]), d[5], pj[ATT_PHID]), d[6], pj[ATT_THETAD]);
-        a[1][j] = ekf_mac(ekf_mac(ekf_mac(ekf_mac(pj[ATT_THETA], d[7], pj[ATT_Q]), d[8], pj[ATT_R]), d[9], pj[ATT_PHI]), d[10], pj[ATT_PHID]);
-        a[2][j] = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(pj[ATT_PSI], d[11], pj[ATT_Q]), d[12], pj[ATT_R]), d[13], pj[ATT_PHI]), d[14], pj[ATT_THETA]), d[15], pj[ATT_PHID]), d[16], pj[ATT_THETAD]);
-        a[3][j] = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(pj[ATT_PHID], d[17], pj[ATT_P]), d[18], pj[ATT_Q]), d[19], pj[ATT_R]), d[20], pj[ATT_PHI]), d[21], pj[ATT_THETA]), d[22], pj[ATT_PHID]), d[23], pj[ATT_THETAD]);
-        a[4][j] = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(pj[ATT_THETAD], d[24], pj[ATT_P]), d[25], pj[ATT_Q]), d[26], pj[ATT_R]), d[27], pj[ATT_PHI]), d[28], pj[ATT_THETA]), d[29], pj[ATT_PHID]), d[30], pj[ATT_THETAD]);
-        a[5][j] = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(pj[ATT_PSID], d[31], pj[ATT_P]), d[32], pj[ATT_Q]), d[33], pj[ATT_R]), d[34], pj[ATT_PHI]), d[35], pj[ATT_THETA]), d[36], pj[ATT_PHID]), d[37], pj[ATT_THETAD]), d[38], pj[ATT_PSID]);
-    }
-    static const uint8_t rows[6] = {ATT_PHI, ATT_THETA, ATT_PSI, ATT_PHID, ATT_THETAD, ATT_PSID};
-    for (j = 0; j < 6; ++j) {
-        const ekf_scalar_t *ai = a[j];
-        const int ri = rows[j];
-        ekf_scalar_t *pr = &P[ri * ATT_N];
-        ekf_scalar_t v;
-        pr[ATT_P] = P[ATT_P * ATT_N + ri] = ai[ATT_P];
-        pr[ATT_Q] = P[ATT_Q * ATT_N + ri] = ai[ATT_Q];
-        pr[ATT_R] = P[ATT_R * ATT_N + ri] = ai[ATT_R];
-        if (j <= 0) {
-            v = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ai[ATT_PHI], d[0], ai[ATT_P]), d[1], ai[ATT_Q]), d[2], ai[ATT_R]), d[3], ai[ATT_PHI]), d[4], ai[ATT_THETA]), d[5], ai[ATT_PHID]), d[6], ai[ATT_THETAD]);
-            pr[ATT_PHI] = v;
-            P[ATT_PHI * ATT_N + ri] = v;
-        }
-        if (j <= 1) {
-            v = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ai[ATT_THETA], d[7], ai[ATT_Q]), d[8], ai[ATT_R]), d[9], ai[ATT_PHI]), d[10], ai[ATT_PHID]);
-            pr[ATT_THETA] = v;
-            P[ATT_THETA * ATT_N + ri] = v;
-        }
-        if (j <= 2) {
-            v = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ai[ATT_PSI], d[11], ai[ATT_Q]), d[12], ai[ATT_R]), d[13], ai[ATT_PHI]), d[14], ai[ATT_THETA]), d[15], ai[ATT_PHID]), d[16], ai[ATT_THETAD]);
-            pr[ATT_PSI] = v;
-            P[ATT_PSI * ATT_N + ri] = v;
-        }
-        if (j <= 3) {
-            v = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ai[ATT_PHID], d[17], ai[ATT_P]), d[18], ai[ATT_Q]), d[19], ai[ATT_R]), d[20], ai[ATT_PHI]), d[21], ai[ATT_THETA]), d[22], ai[ATT_PHID]), d[23], ai[ATT_THETAD]);
-            pr[ATT_PHID] = v;
-            P[ATT_PHID * ATT_N + ri] = v;
-        }
-        if (j <= 4) {
-            v = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ai[ATT_THETAD], d[24], ai[ATT_P]), d[25], ai[ATT_Q]), d[26], ai[ATT_R]), d[27], ai[ATT_PHI]), d[28], ai[ATT_THETA]), d[29], ai[ATT_PHID]), d[30], ai[ATT_THETAD]);
-            pr[ATT_THETAD] = v;
-            P[ATT_THETAD * ATT_N + ri] = v;
-        }
-        if (j <= 5) {
-            v = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ai[ATT_PSID], d[31], ai[ATT_P]), d[32], ai[ATT_Q]), d[33], ai[ATT_R]), d[34], ai[ATT_PHI]), d[35], ai[ATT_THETA]), d[36], ai[ATT_PHID]), d[37], ai[ATT_THETAD]), d[38], ai[ATT_PSID]);
-            pr[ATT_PSID] = v;
-            P[ATT_PSID * ATT_N + ri] = v;
-        }
-    }
-}
 
 void att_gen_cov_propagate_f1(ekf_scalar_t P[ATT_N * ATT_N], const ekf_scalar_t d[ATT_GEN_F1_NNZ])
 {
@@ -114,9 +17,9 @@ void att_gen_cov_propagate_f1(ekf_scalar_t P[ATT_N * ATT_N], const ekf_scalar_t 
     int j;
     for (j = 0; j < ATT_N; ++j) {
         const ekf_scalar_t *pj = &P[j * ATT_N]; /* column j of P (symmetric) */
-        a[0][j] = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(pj[ATT_PHI], d[0], pj[ATT_P]), d[1], pj[ATT_Q]), d[2], pj[ATT_R]), d[3], pj[ATT_PHI]), d[4], pj[ATT_THETA]), d[5], pj[ATT_PHID]), d[6], pj[ATT_THETAD]);
-        a[1][j] = ekf_mac(ekf_mac(ekf_mac(ekf_mac(pj[ATT_THETA], d[7], pj[ATT_Q]), d[8], pj[ATT_R]), d[9], pj[ATT_PHI]), d[10], pj[ATT_PHID]);
-        a[2][j] = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(pj[ATT_PSI], d[11], pj[ATT_Q]), d[12], pj[ATT_R]), d[13], pj[ATT_PHI]), d[14], pj[ATT_THETA]), d[15], pj[ATT_PHID]), d[16], pj[ATT_THETAD]);
+        a[0][j] = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(pj[ATT_PHI], d[0], pj[ATT_P]), d[1], pj[ATT_Q]), d[2], pj[ATT_R]), d[3], pj[ATT_PHI]), d[4], pj[ATT_THETA]), d[5], pj[ATT_PSI]);
+        a[1][j] = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(pj[ATT_THETA], d[6], pj[ATT_P]), d[7], pj[ATT_Q]), d[8], pj[ATT_R]), d[9], pj[ATT_PHI]), d[10], pj[ATT_THETA]), d[11], pj[ATT_PSI]);
+        a[2][j] = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(pj[ATT_PSI], d[12], pj[ATT_P]), d[13], pj[ATT_Q]), d[14], pj[ATT_R]), d[15], pj[ATT_PHI]), d[16], pj[ATT_THETA]), d[17], pj[ATT_PSI]);
     }
     static const uint8_t rows[3] = {ATT_PHI, ATT_THETA, ATT_PSI};
     for (j = 0; j < 3; ++j) {
@@ -131,17 +34,17 @@ void att_gen_cov_propagate_f1(ekf_scalar_t P[ATT_N * ATT_N], const ekf_scalar_t 
         pr[ATT_THETAD] = P[ATT_THETAD * ATT_N + ri] = ai[ATT_THETAD];
         pr[ATT_PSID] = P[ATT_PSID * ATT_N + ri] = ai[ATT_PSID];
         if (j <= 0) {
-            v = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ai[ATT_PHI], d[0], ai[ATT_P]), d[1], ai[ATT_Q]), d[2], ai[ATT_R]), d[3], ai[ATT_PHI]), d[4], ai[ATT_THETA]), d[5], ai[ATT_PHID]), d[6], ai[ATT_THETAD]);
+            v = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ai[ATT_PHI], d[0], ai[ATT_P]), d[1], ai[ATT_Q]), d[2], ai[ATT_R]), d[3], ai[ATT_PHI]), d[4], ai[ATT_THETA]), d[5], ai[ATT_PSI]);
             pr[ATT_PHI] = v;
             P[ATT_PHI * ATT_N + ri] = v;
         }
         if (j <= 1) {
-            v = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ai[ATT_THETA], d[7], ai[ATT_Q]), d[8], ai[ATT_R]), d[9], ai[ATT_PHI]), d[10], ai[ATT_PHID]);
+            v = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ai[ATT_THETA], d[6], ai[ATT_P]), d[7], ai[ATT_Q]), d[8], ai[ATT_R]), d[9], ai[ATT_PHI]), d[10], ai[ATT_THETA]), d[11], ai[ATT_PSI]);
             pr[ATT_THETA] = v;
             P[ATT_THETA * ATT_N + ri] = v;
         }
         if (j <= 2) {
-            v = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ai[ATT_PSI], d[11], ai[ATT_Q]), d[12], ai[ATT_R]), d[13], ai[ATT_PHI]), d[14], ai[ATT_THETA]), d[15], ai[ATT_PHID]), d[16], ai[ATT_THETAD]);
+            v = ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ekf_mac(ai[ATT_PSI], d[12], ai[ATT_P]), d[13], ai[ATT_Q]), d[14], ai[ATT_R]), d[15], ai[ATT_PHI]), d[16], ai[ATT_THETA]), d[17], ai[ATT_PSI]);
             pr[ATT_PSI] = v;
             P[ATT_PSI * ATT_N + ri] = v;
         }
@@ -220,98 +123,6 @@ void att_gen_body_rates(const att_trig_t *t, const ekf_scalar_t e[3], ekf_scalar
     out[2] = ekf_sub(ekf_mul(t0, cph), ekf_mul(thetad, sph));
 }
 
-void att_gen_transition_jacobian(const att_trig_t *tm, const att_trig_t *t, const ekf_scalar_t x[ATT_N], ekf_scalar_t dt, ekf_scalar_t d[ATT_GEN_F_NNZ])
-{
-    const ekf_scalar_t sphm = tm->sphi;
-    const ekf_scalar_t cphm = tm->cphi;
-    const ekf_scalar_t sthm = tm->sth;
-    const ekf_scalar_t secthm = tm->secth;
-    const ekf_scalar_t sph = t->sphi;
-    const ekf_scalar_t cph = t->cphi;
-    const ekf_scalar_t sth = t->sth;
-    const ekf_scalar_t secth = t->secth;
-    const ekf_scalar_t q = x[ATT_Q];
-    const ekf_scalar_t r = x[ATT_R];
-    const ekf_scalar_t t0 = ekf_mul(secthm, sthm);
-    const ekf_scalar_t t1 = ekf_mul(q, cphm);
-    const ekf_scalar_t t2 = ekf_sub(t1, ekf_mul(r, sphm));
-    const ekf_scalar_t t3 = ekf_mul(secthm, secthm);
-    const ekf_scalar_t t4 = ekf_add(EKF_C(1), ekf_mul(ekf_mul(t3, sthm), sthm));
-    const ekf_scalar_t t5 = ekf_mul(q, sphm);
-    const ekf_scalar_t t6 = ekf_add(t5, ekf_mul(r, cphm));
-    const ekf_scalar_t t7 = ekf_mul(t3, sthm);
-    const ekf_scalar_t t8 = ekf_mul(secth, sth);
-    const ekf_scalar_t t9 = ekf_mul(r, sph);
-    const ekf_scalar_t t10 = ekf_sub(ekf_mul(q, cph), t9);
-    const ekf_scalar_t t11 = ekf_mul(cph, sphm);
-    const ekf_scalar_t t12 = ekf_mul(t0, t11);
-    const ekf_scalar_t t13 = ekf_mul(ekf_mul(ekf_mul(secth, secth), sth), sth);
-    const ekf_scalar_t t14 = ekf_add(EKF_C(1), t13);
-    const ekf_scalar_t t15 = ekf_mul(cphm, sph);
-    const ekf_scalar_t t16 = ekf_mul(sph, sphm);
-    const ekf_scalar_t t17 = ekf_mul(t0, t16);
-    const ekf_scalar_t t18 = ekf_mul(cph, cphm);
-    const ekf_scalar_t t19 = ekf_sub(ekf_mul(t14, t18), ekf_mul(t8, t17));
-    const ekf_scalar_t t20 = ekf_mul(t8, t15);
-    const ekf_scalar_t t21 = ekf_mul(t8, t18);
-    const ekf_scalar_t t22 = ekf_mul(ekf_sub(ekf_add(t16, ekf_mul(t13, t16)), ekf_mul(t0, t21)), q);
-    const ekf_scalar_t t23 = ekf_mul(r, r);
-    const ekf_scalar_t t24 = ekf_add(t0, t8);
-    const ekf_scalar_t t25 = ekf_mul(r, ekf_add(t11, t15));
-    const ekf_scalar_t t26 = ekf_add(ekf_mul(ekf_add(t22, ekf_mul(ekf_add(EKF_C(1), ekf_mul(t24, t8)), t25)), q), ekf_mul(t23, t19));
-    const ekf_scalar_t t27 = ekf_mul(r, cph);
-    const ekf_scalar_t t28 = ekf_mul(q, sph);
-    const ekf_scalar_t t29 = ekf_sub(t18, t16);
-    const ekf_scalar_t t30 = ekf_mul(r, t29);
-    const ekf_scalar_t t31 = ekf_sub(ekf_mul(t23, t15), ekf_mul(q, ekf_add(t30, ekf_mul(t5, cph))));
-    const ekf_scalar_t t32 = ekf_add(t27, t28);
-    const ekf_scalar_t t33 = ekf_mul(t23, t11);
-    const ekf_scalar_t t34 = ekf_mul(t1, sph);
-    const ekf_scalar_t t35 = ekf_add(ekf_mul(q, ekf_add(t25, ekf_mul(t5, sph))), ekf_mul(t23, t18));
-    const ekf_scalar_t t36 = ekf_sub(t21, t17);
-    const ekf_scalar_t t37 = ekf_mul(q, ekf_sub(ekf_mul(t0, t18), ekf_mul(t8, t16)));
-    const ekf_scalar_t t38 = ekf_sub(ekf_mul(ekf_sub(t37, ekf_mul(t24, t25)), q), ekf_mul(t23, t36));
-    d[0] = dt;
-    d[1] = ekf_mul(ekf_mul(t0, sphm), dt);
-    d[2] = ekf_mul(ekf_mul(t0, cphm), dt);
-    d[3] = ekf_mul(ekf_mul(t0, t2), dt);
-    d[4] = ekf_mul(ekf_mul(t4, t6), dt);
-    d[5] = ekf_mul(ekf_mul(ekf_mul(ekf_mul(t0, t2), EKF_C(0.5)), dt), dt);
-    d[6] = ekf_mul(ekf_mul(ekf_mul(ekf_mul(t4, t6), EKF_C(0.5)), dt), dt);
-    d[7] = ekf_mul(cphm, dt);
-    d[8] = ekf_neg(ekf_mul(sphm, dt));
-    d[9] = ekf_neg(ekf_mul(t6, dt));
-    d[10] = ekf_neg(ekf_mul(ekf_mul(ekf_mul(t6, EKF_C(0.5)), dt), dt));
-    d[11] = ekf_mul(ekf_mul(secthm, sphm), dt);
-    d[12] = ekf_mul(ekf_mul(secthm, cphm), dt);
-    d[13] = ekf_mul(ekf_mul(secthm, t2), dt);
-    d[14] = ekf_mul(ekf_mul(t7, t6), dt);
-    d[15] = ekf_mul(ekf_mul(ekf_mul(ekf_mul(secthm, t2), EKF_C(0.5)), dt), dt);
-    d[16] = ekf_mul(ekf_mul(ekf_mul(ekf_mul(t7, t6), EKF_C(0.5)), dt), dt);
-    d[17] = ekf_add(EKF_C(1), ekf_mul(ekf_mul(t8, t10), dt));
-    d[18] = ekf_add(ekf_mul(ekf_add(ekf_mul(ekf_add(ekf_mul(t8, t12), ekf_mul(t14, t15)), q), ekf_mul(t19, r)), dt), ekf_mul(t8, sph));
-    d[19] = ekf_sub(ekf_mul(t8, cph), ekf_mul(ekf_add(t22, ekf_mul(ekf_add(ekf_mul(t0, t20), ekf_mul(t14, t11)), r)), dt));
-    d[20] = ekf_sub(ekf_sub(ekf_mul(ekf_mul(ekf_mul(secth, q), cph), sth), ekf_mul(t26, dt)), ekf_mul(t8, t9));
-    d[21] = ekf_sub(ekf_add(ekf_mul(t14, t27), ekf_mul(t14, t28)), ekf_mul(ekf_mul(ekf_mul(t4, t31), t8), dt));
-    d[22] = ekf_neg(ekf_add(EKF_C(1), ekf_mul(ekf_mul(ekf_mul(t26, EKF_C(0.5)), dt), dt)));
-    d[23] = ekf_neg(ekf_mul(ekf_mul(ekf_mul(ekf_mul(ekf_mul(t4, t31), t8), EKF_C(0.5)), dt), dt));
-    d[24] = ekf_neg(ekf_mul(t32, dt));
-    d[25] = ekf_sub(cph, ekf_mul(ekf_mul(ekf_mul(t0, t32), sphm), dt));
-    d[26] = ekf_neg(ekf_add(sph, ekf_mul(ekf_mul(ekf_mul(t0, t32), cphm), dt)));
-    d[27] = ekf_sub(ekf_mul(ekf_mul(ekf_mul(ekf_sub(t33, ekf_mul(q, ekf_add(t34, ekf_mul(r, t29)))), secthm), sthm), dt), t32);
-    d[28] = ekf_neg(ekf_mul(ekf_mul(t4, t35), dt));
-    d[29] = ekf_mul(ekf_mul(ekf_mul(ekf_mul(ekf_sub(t33, ekf_mul(q, ekf_add(t30, t34))), t0), EKF_C(0.5)), dt), dt);
-    d[30] = ekf_neg(ekf_add(EKF_C(1), ekf_mul(ekf_mul(ekf_mul(ekf_mul(t4, t35), EKF_C(0.5)), dt), dt)));
-    d[31] = ekf_mul(ekf_mul(secth, t10), dt);
-    d[32] = ekf_mul(secth, ekf_add(sph, ekf_mul(ekf_add(ekf_mul(q, ekf_add(t12, t20)), ekf_mul(r, t36)), dt)));
-    d[33] = ekf_mul(secth, ekf_add(cph, ekf_mul(ekf_sub(t37, ekf_mul(r, ekf_add(ekf_mul(t0, t15), ekf_mul(t8, t11)))), dt)));
-    d[34] = ekf_mul(secth, ekf_add(t10, ekf_mul(t38, dt)));
-    d[35] = ekf_mul(ekf_sub(ekf_add(ekf_mul(t8, t27), ekf_mul(t8, t28)), ekf_mul(ekf_mul(t4, t31), dt)), secth);
-    d[36] = ekf_mul(ekf_mul(ekf_mul(ekf_mul(t38, secth), EKF_C(0.5)), dt), dt);
-    d[37] = ekf_neg(ekf_mul(ekf_mul(ekf_mul(ekf_mul(ekf_mul(t4, t31), secth), EKF_C(0.5)), dt), dt));
-    d[38] = ekf_neg(EKF_C(1));
-}
-
 void att_gen_noise_jacobian(const att_trig_t *t, ekf_scalar_t g[9])
 {
     const ekf_scalar_t sph = t->sphi;
@@ -372,61 +183,86 @@ void att_gen_mag_level(const att_trig_t *t, const ekf_scalar_t m[3], ekf_scalar_
     out[2] = ekf_sub(ekf_add(ekf_mul(t0, cth), ekf_mul(t1, cth)), ekf_mul(mx, sth));
 }
 
-void att_gen_transition_factors(const att_trig_t *tm, const att_trig_t *t, const ekf_scalar_t x[ATT_N], ekf_scalar_t dt, ekf_scalar_t d1[ATT_GEN_F1_NNZ], ekf_scalar_t d2[ATT_GEN_F2_NNZ])
+void att_gen_transition_factors(const att_trig_t *tb, const att_trig_t *t, const ekf_scalar_t x[ATT_N], const ekf_scalar_t rot[9], const ekf_scalar_t jd[9], ekf_scalar_t d1[ATT_GEN_F1_NNZ], ekf_scalar_t d2[ATT_GEN_F2_NNZ])
 {
-    const ekf_scalar_t sphm = tm->sphi;
-    const ekf_scalar_t cphm = tm->cphi;
-    const ekf_scalar_t sthm = tm->sth;
-    const ekf_scalar_t secthm = tm->secth;
+    const ekf_scalar_t sph0 = tb->sphi;
+    const ekf_scalar_t cph0 = tb->cphi;
     const ekf_scalar_t sph = t->sphi;
     const ekf_scalar_t cph = t->cphi;
     const ekf_scalar_t sth = t->sth;
     const ekf_scalar_t secth = t->secth;
     const ekf_scalar_t q = x[ATT_Q];
     const ekf_scalar_t r = x[ATT_R];
-    const ekf_scalar_t t0 = ekf_mul(secthm, ekf_sub(ekf_mul(q, cphm), ekf_mul(r, sphm)));
-    const ekf_scalar_t t1 = ekf_mul(secthm, secthm);
-    const ekf_scalar_t t2 = ekf_add(EKF_C(1), ekf_mul(ekf_mul(t1, sthm), sthm));
-    const ekf_scalar_t t3 = ekf_add(ekf_mul(r, cphm), ekf_mul(q, sphm));
-    const ekf_scalar_t t4 = ekf_mul(t1, sthm);
-    const ekf_scalar_t t5 = ekf_mul(secth, sph);
-    const ekf_scalar_t t6 = ekf_mul(secth, cph);
-    const ekf_scalar_t t7 = ekf_mul(secth, ekf_sub(ekf_mul(q, cph), ekf_mul(r, sph)));
-    const ekf_scalar_t t8 = ekf_mul(r, cph);
-    const ekf_scalar_t t9 = ekf_mul(secth, secth);
-    const ekf_scalar_t t10 = ekf_mul(ekf_mul(t9, sth), sth);
-    const ekf_scalar_t t11 = ekf_mul(q, sph);
-    const ekf_scalar_t t12 = ekf_add(t11, t8);
-    d1[0] = dt;
-    d1[1] = ekf_mul(ekf_mul(ekf_mul(secthm, sphm), sthm), dt);
-    d1[2] = ekf_mul(ekf_mul(ekf_mul(secthm, cphm), sthm), dt);
-    d1[3] = ekf_mul(ekf_mul(t0, sthm), dt);
-    d1[4] = ekf_mul(ekf_mul(t2, t3), dt);
-    d1[5] = ekf_mul(ekf_mul(ekf_mul(ekf_mul(t0, sthm), EKF_C(0.5)), dt), dt);
-    d1[6] = ekf_mul(ekf_mul(ekf_mul(ekf_mul(t2, t3), EKF_C(0.5)), dt), dt);
-    d1[7] = ekf_mul(cphm, dt);
-    d1[8] = ekf_neg(ekf_mul(sphm, dt));
-    d1[9] = ekf_neg(ekf_mul(t3, dt));
-    d1[10] = ekf_neg(ekf_mul(ekf_mul(ekf_mul(t3, EKF_C(0.5)), dt), dt));
-    d1[11] = ekf_mul(ekf_mul(secthm, sphm), dt);
-    d1[12] = ekf_mul(ekf_mul(secthm, cphm), dt);
-    d1[13] = ekf_mul(t0, dt);
-    d1[14] = ekf_mul(ekf_mul(t4, t3), dt);
-    d1[15] = ekf_mul(ekf_mul(ekf_mul(t0, EKF_C(0.5)), dt), dt);
-    d1[16] = ekf_mul(ekf_mul(ekf_mul(ekf_mul(t4, t3), EKF_C(0.5)), dt), dt);
+    const ekf_scalar_t c0 = rot[0];
+    const ekf_scalar_t c1 = rot[1];
+    const ekf_scalar_t c2 = rot[2];
+    const ekf_scalar_t c3 = rot[3];
+    const ekf_scalar_t c4 = rot[4];
+    const ekf_scalar_t c5 = rot[5];
+    const ekf_scalar_t c6 = rot[6];
+    const ekf_scalar_t c7 = rot[7];
+    const ekf_scalar_t c8 = rot[8];
+    const ekf_scalar_t j0 = jd[0];
+    const ekf_scalar_t j1 = jd[1];
+    const ekf_scalar_t j2 = jd[2];
+    const ekf_scalar_t j3 = jd[3];
+    const ekf_scalar_t j4 = jd[4];
+    const ekf_scalar_t j5 = jd[5];
+    const ekf_scalar_t j6 = jd[6];
+    const ekf_scalar_t j7 = jd[7];
+    const ekf_scalar_t j8 = jd[8];
+    const ekf_scalar_t t0 = ekf_mul(cph, j6);
+    const ekf_scalar_t t1 = ekf_mul(secth, sth);
+    const ekf_scalar_t t2 = ekf_mul(sph, j3);
+    const ekf_scalar_t t3 = ekf_mul(cph, j7);
+    const ekf_scalar_t t4 = ekf_mul(sph, j4);
+    const ekf_scalar_t t5 = ekf_mul(cph, j8);
+    const ekf_scalar_t t6 = ekf_mul(sph, j5);
+    const ekf_scalar_t t7 = ekf_mul(c1, sph);
+    const ekf_scalar_t t8 = ekf_mul(c2, cph);
+    const ekf_scalar_t t9 = ekf_mul(c4, sph);
+    const ekf_scalar_t t10 = ekf_mul(c5, cph);
+    const ekf_scalar_t t11 = ekf_mul(c7, sph);
+    const ekf_scalar_t t12 = ekf_mul(c8, cph);
+    const ekf_scalar_t t13 = ekf_mul(secth, sph);
+    const ekf_scalar_t t14 = ekf_mul(secth, cph);
+    const ekf_scalar_t t15 = ekf_mul(secth, ekf_sub(ekf_mul(q, cph), ekf_mul(r, sph)));
+    const ekf_scalar_t t16 = ekf_mul(r, cph);
+    const ekf_scalar_t t17 = ekf_mul(secth, secth);
+    const ekf_scalar_t t18 = ekf_mul(ekf_mul(t17, sth), sth);
+    const ekf_scalar_t t19 = ekf_mul(q, sph);
+    const ekf_scalar_t t20 = ekf_add(t16, t19);
+    d1[0] = ekf_add(ekf_add(j0, ekf_mul(t1, t0)), ekf_mul(t1, t2));
+    d1[1] = ekf_add(ekf_add(j1, ekf_mul(t1, t3)), ekf_mul(t1, t4));
+    d1[2] = ekf_add(ekf_add(j2, ekf_mul(t1, t5)), ekf_mul(t1, t6));
+    d1[3] = ekf_sub(ekf_add(ekf_add(c0, ekf_mul(t1, t7)), ekf_mul(t1, t8)), EKF_C(1));
+    d1[4] = ekf_sub(ekf_mul(ekf_add(ekf_add(c3, ekf_mul(t1, t10)), ekf_mul(t1, t9)), cph0), ekf_mul(ekf_add(ekf_add(c6, ekf_mul(t1, t11)), ekf_mul(t1, t12)), sph0));
+    d1[5] = EKF_C(0);
+    d1[6] = ekf_sub(ekf_mul(cph, j3), ekf_mul(sph, j6));
+    d1[7] = ekf_sub(ekf_mul(cph, j4), ekf_mul(sph, j7));
+    d1[8] = ekf_sub(ekf_mul(cph, j5), ekf_mul(sph, j8));
+    d1[9] = ekf_sub(ekf_mul(c1, cph), ekf_mul(c2, sph));
+    d1[10] = ekf_sub(ekf_sub(ekf_mul(cph0, ekf_sub(ekf_mul(c4, cph), ekf_mul(c5, sph))), EKF_C(1)), ekf_mul(sph0, ekf_sub(ekf_mul(c7, cph), ekf_mul(c8, sph))));
+    d1[11] = EKF_C(0);
+    d1[12] = ekf_mul(secth, ekf_add(t0, t2));
+    d1[13] = ekf_mul(secth, ekf_add(t3, t4));
+    d1[14] = ekf_mul(secth, ekf_add(t5, t6));
+    d1[15] = ekf_mul(secth, ekf_add(t7, t8));
+    d1[16] = ekf_mul(secth, ekf_sub(ekf_mul(cph0, ekf_add(t10, t9)), ekf_mul(sph0, ekf_add(t11, t12))));
+    d1[17] = EKF_C(0);
     d2[0] = EKF_C(1);
-    d2[1] = ekf_mul(t5, sth);
-    d2[2] = ekf_mul(t6, sth);
-    d2[3] = ekf_mul(t7, sth);
-    d2[4] = ekf_add(ekf_add(t12, ekf_mul(t10, t11)), ekf_mul(t10, t8));
+    d2[1] = ekf_mul(t13, sth);
+    d2[2] = ekf_mul(t14, sth);
+    d2[3] = ekf_mul(t15, sth);
+    d2[4] = ekf_add(ekf_add(t20, ekf_mul(t18, t16)), ekf_mul(t18, t19));
     d2[5] = ekf_neg(EKF_C(1));
     d2[6] = cph;
     d2[7] = ekf_neg(sph);
-    d2[8] = ekf_neg(t12);
+    d2[8] = ekf_neg(t20);
     d2[9] = ekf_neg(EKF_C(1));
-    d2[10] = t5;
-    d2[11] = t6;
-    d2[12] = t7;
-    d2[13] = ekf_mul(ekf_mul(t9, t12), sth);
+    d2[10] = t13;
+    d2[11] = t14;
+    d2[12] = t15;
+    d2[13] = ekf_mul(ekf_mul(t17, t20), sth);
     d2[14] = ekf_neg(EKF_C(1));
 }

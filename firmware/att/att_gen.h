@@ -16,29 +16,15 @@ extern "C" {
 
 #include "att_defs.h"
 
-/* Number of structurally non-zero entries of D = F - I. */
-#define ATT_GEN_F_NNZ 39
-
-/* (row, column) of each entry of D, sorted by row: the pattern for ekf_cov_propagate. */
-extern const ekf_nz_t att_gen_f_pattern[ATT_GEN_F_NNZ];
-
-/* Number of structurally non-zero entries of D1 = F1 - I (the angle rows), and their
+/* Number of entries of D1 = F1 - I (the angle rows), and their
  * (row, column), sorted by row (att_gen_transition_factors). */
-#define ATT_GEN_F1_NNZ 17
+#define ATT_GEN_F1_NNZ 18
 extern const ekf_nz_t att_gen_f1_pattern[ATT_GEN_F1_NNZ];
 
-/* Number of structurally non-zero entries of D2 = F2 - I (the Euler-rate rows), and their
+/* Number of entries of D2 = F2 - I (the Euler-rate rows), and their
  * (row, column), sorted by row (att_gen_transition_factors). */
 #define ATT_GEN_F2_NNZ 15
 extern const ekf_nz_t att_gen_f2_pattern[ATT_GEN_F2_NNZ];
-
-/*
- * P <- F P F^T, F = I + D, d: the values of D in the order of att_gen_f_pattern.
- * ekf_cov_propagate() unrolled for this pattern: the same operations in the same order
- * (bit-identical result) without reading the pattern at run time. P must be exactly
- * symmetric and stays so. d must be finite (the caller checks).
- */
-void att_gen_cov_propagate(ekf_scalar_t P[ATT_N * ATT_N], const ekf_scalar_t d[ATT_GEN_F_NNZ]);
 
 /*
  * P <- F P F^T, F = I + D1, d: the values of D1 in the order of att_gen_f1_pattern.
@@ -69,13 +55,6 @@ void att_gen_euler_rates(const att_trig_t *t, const ekf_scalar_t w[3], ekf_scala
 void att_gen_body_rates(const att_trig_t *t, const ekf_scalar_t e[3], ekf_scalar_t out[3]);
 
 /*
- * Non-zero entries of D = F - I, F = df/dx, in the order of att_gen_f_pattern.
- * x: state before the step; dt: step (s); tm: trigonometry of the midpoint angles
- * (phi + dt/2 phid, theta + dt/2 thetad); t: of the advanced angles.
- */
-void att_gen_transition_jacobian(const att_trig_t *tm, const att_trig_t *t, const ekf_scalar_t x[ATT_N], ekf_scalar_t dt, ekf_scalar_t d[ATT_GEN_F_NNZ]);
-
-/*
  * Euler-rate block (rows PHID..PSID) of G = df/dw, row-major 3x3; the body-rate
  * block of G is the identity and the angle block is zero. t: trigonometry of the
  * advanced angles.
@@ -102,11 +81,14 @@ void att_gen_mag_level(const att_trig_t *t, const ekf_scalar_t m[3], ekf_scalar_
 
 /*
  * F = F2 F1, F1 = I + D1, F2 = I + D2 (docs/derivation.md, "State Jacobian"): d1 the values
- * of D1 (the angle rows of D) in the order of att_gen_f1_pattern, d2 those of D2 (the
- * Euler-rate rows: W+ on the body rates, M+ on roll and pitch, -1 on the rate itself) in
- * the order of att_gen_f2_pattern. Arguments as for att_gen_transition_jacobian.
+ * of D1 (the angle rows: W+ Jr dt on the body rates, W+ C^T E - I on the angles, zero in
+ * the heading column) in the order of att_gen_f1_pattern, d2 those of D2 (the Euler-rate
+ * rows: W+ on the body rates, M+ on roll and pitch, -1 on the rate itself) in the order of
+ * att_gen_f2_pattern. x: state before the step (its body rates); tb: trigonometry of the
+ * angles before the step, t: of the advanced angles; rot = C = Exp([w dt]x) and
+ * jd = Jr(w dt) dt, row-major (att_model_rotation).
  */
-void att_gen_transition_factors(const att_trig_t *tm, const att_trig_t *t, const ekf_scalar_t x[ATT_N], ekf_scalar_t dt, ekf_scalar_t d1[ATT_GEN_F1_NNZ], ekf_scalar_t d2[ATT_GEN_F2_NNZ]);
+void att_gen_transition_factors(const att_trig_t *tb, const att_trig_t *t, const ekf_scalar_t x[ATT_N], const ekf_scalar_t rot[9], const ekf_scalar_t jd[9], ekf_scalar_t d1[ATT_GEN_F1_NNZ], ekf_scalar_t d2[ATT_GEN_F2_NNZ]);
 
 #ifdef __cplusplus
 }

@@ -21,17 +21,36 @@ extern "C" {
  * Returns 1 if the clamp was active. */
 int att_trig(ekf_scalar_t phi, ekf_scalar_t theta, ekf_scalar_t theta_limit, att_trig_t *t);
 
+/* What the transition computes besides x+, and its Jacobian needs: the trigonometry of the
+ * angles before the step (t0) and after it (t; sec(theta) clamped at theta_limit), the
+ * rotation over the step C = Exp([w dt]x) and Jr(w dt) dt (row-major), and whether the body
+ * went over the top (phi and psi each turned by about pi: a remap of the representation). */
+typedef struct {
+    att_trig_t t0;
+    att_trig_t t;
+    ekf_scalar_t rot[9];
+    ekf_scalar_t jd[9];
+    int remapped;
+} att_motion_t;
+
+/* C = Exp([u]x) (the rotation by the vector u, rad) and J = Jr(u) s, Jr the right Jacobian of
+ * SO(3) (d Exp(u + du) = Exp(u) Exp(Jr(u) du)), both row-major, s a scale (the step, s):
+ * docs/derivation.md, "Transition". Series in |u|^2 where they are exact in the scalar,
+ * sine and cosine beyond. */
+void att_model_rotation(const ekf_scalar_t u[3], ekf_scalar_t s, ekf_scalar_t C[9], ekf_scalar_t J[9]);
+
 /*
- * Transition x+ = f(x, w, dt) (docs/derivation.md, "Transition"):
- *   omega+ = omega + w;  Theta_m = Theta + dt/2 Thetadot;
- *   Theta+ = Theta + dt W(Theta_m) omega;  Thetadot+ = W(Theta+) omega+.
- * w: body-rate increment over the step (rad/s), NULL for zero. tm and tn (may be NULL)
- * receive the trigonometry of the midpoint and of the advanced angles, which the Jacobian
- * needs too. xn must not alias x. Angles are returned unnormalised (see att_model_normalise).
+ * Transition x+ = f(x, w, dt) (docs/derivation.md, "Transition"): exact for a body rate
+ * that is constant over the step,
+ *   omega+ = omega + w;  R(Theta+) = R(Theta) Exp([omega dt]x);  Thetadot+ = W(Theta+) omega+.
+ * Theta+ is read off the composed rotation with phi, psi in [-pi, pi), theta in
+ * [-pi/2, pi/2]; within sqrt(eps) of +-90 deg pitch, where roll and heading are not
+ * separable, roll keeps its value and the heading takes the rest of the rotation. w: body-rate
+ * increment over the step (rad/s), NULL for zero. m receives what the Jacobian and the
+ * low-pass need. xn must not alias x.
  */
 void att_model_transition(const ekf_scalar_t x[ATT_N], const ekf_scalar_t w[3], ekf_scalar_t dt,
-                          ekf_scalar_t theta_limit, ekf_scalar_t xn[ATT_N], att_trig_t *tm,
-                          att_trig_t *tn);
+                          ekf_scalar_t theta_limit, ekf_scalar_t xn[ATT_N], att_motion_t *m);
 
 /*
  * Brings the Euler triple back to phi, psi in [-pi, pi), theta in [-pi/2, pi/2]. A pitch

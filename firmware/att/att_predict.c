@@ -5,9 +5,12 @@
  */
 #include <stddef.h>
 
+#include "att_predict.h"
+
 #include "att_gen.h"
-#include "att_internal.h"
+#include "att_lowpass.h"
 #include "att_model.h"
+#include "att_state.h"
 #include "ekf_util.h"
 
 /* Keeps every variance below a physical bound (docs/derivation.md, "Covariance bounds"):
@@ -38,69 +41,81 @@ static void limit_variances(att_vars_t *v, const att_settings_t *s)
     (void)att_cov_limit_variance(&v->cov, ATT_THETA, ekf_sq(EKF_HALF_PI));
 }
 
-static void cross(const ekf_scalar_t a[3], const ekf_scalar_t b[3], ekf_scalar_t out[3])
+/* A step longer than the sample interval by more than half of it is a gap: the body rate
+ * was not measured over the excess e, and its random walk integrates into the angles,
+ * rate_walk^2 e^3 / 3 in each body axis (the integrated random walk), mapped to the Euler
+ * angles by W's rows (sec^2 theta, 1, sec^2 theta; their correlations left out, which only
+ * overstates). The offset learned in motion does not learn from the errors that follow.
+ * Steps that are not gaps keep the interval's running mean (docs/derivation.md, "Gaps"). */
+static void gap_noise(att_vars_t *v, const att_settings_t *s, const att_motion_t *mo, ekf_scalar_t dt)
 {
-    out[0] = ekf_sub(ekf_mul(a[1], b[2]), ekf_mul(a[2], b[1]));
-    out[1] = ekf_sub(ekf_mul(a[2], b[0]), ekf_mul(a[0], b[2]));
-    out[2] = ekf_sub(ekf_mul(a[0], b[1]), ekf_mul(a[1], b[0]));
-}
-
-/* vec <- vec - th x vec + (th x (th x vec)) / 2: an earth-fixed vector seen from a body
- * that turned by th (rad) in one step, second order in th = w dt; first order loses gravity
- * at fast rotation (|th| ~ 0.05 rad per sample) */
-static void turn_vector(const ekf_scalar_t th[3], ekf_scalar_t vec[3])
-{
-    ekf_scalar_t c1[3], c2[3];
-    int i;
-    cross(th, vec, c1);
-    cross(th, c1, c2);
-    for (i = 0; i < 3; ++i) {
-        vec[i] = ekf_mac(ekf_sub(vec[i], c1[i]), EKF_C(0.5), c2[i]);
-    }
-}
-
-/* The accelerometer low-pass (accel_lpf_tau, accel_lpf_order stages) lives in a frame that turns with the body:
- * every prediction carries the filtered specific force into the new body frame with the
- * body rates (dv/dt = -w x v for a vector fixed in the earth frame), every accelerometer
- * sample is blended in (att_update.c). Gravity is earth-fixed, so it passes without lag;
- * linear acceleration that averages to zero in the earth frame (shaking, vibration) is
- * filtered out (docs/derivation.md, "Linear acceleration"). */
-static void accel_lp_turn(att_vars_t *v, const att_settings_t *s, ekf_scalar_t dt)
-{
-    ekf_scalar_t th[3];
-    int i;
-    if (!v->accel_lp_valid) {
-        return;
-    }
-    for (i = 0; i < 3; ++i) {
-        th[i] = ekf_mul(v->x[ATT_P + i], dt);
-    }
-    if (ekf_add(ekf_add(ekf_sq(th[0]), ekf_sq(th[1])), ekf_sq(th[2])) > EKF_C(0.04)) {
-        /* more than 0.2 rad in one step (a gap, or beyond any IMU's rate): the series
-         * below would be wrong; start again from the next sample */
-        v->accel_lp_valid = 0u;
-        return;
-    }
-    turn_vector(th, v->accel_lp);
-    if (s->accel_lpf_order > 1u) {
-        turn_vector(th, v->accel_lp1);
+    if (!(v->dt_nom > EKF_C(0))) {
+        v->dt_nom = dt;
+    } else if (dt > ekf_mul(EKF_C(1.5), v->dt_nom)) {
+        const ekf_scalar_t e = ekf_sub(dt, v->dt_nom);
+        const ekf_scalar_t q = ekf_div(ekf_mul(ekf_mul(ekf_sq(s->rate_walk), ekf_sq(e)), e), EKF_C(3));
+        const ekf_scalar_t sec2 = ekf_sq(mo->t.secth);
+        att_cov_add_var(&v->cov, ATT_PHI, ekf_mul(q, sec2));
+        att_cov_add_var(&v->cov, ATT_THETA, q);
+        att_cov_add_var(&v->cov, ATT_PSI, ekf_mul(q, sec2));
+        if (q > ekf_min(att_cov_var(&v->cov, ATT_PHI), att_cov_var(&v->cov, ATT_THETA))) {
+            /* an error the tilt's own uncertainty does not cover */
+            att_bias_hold(&v->bias, s->bias.hold_time);
+        }
+    } else {
+        v->dt_nom = ekf_mac(v->dt_nom, ekf_div(dt, ekf_add(EKF_C(0.2), dt)), ekf_sub(dt, v->dt_nom));
     }
 }
 
-ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scalar_t dt)
+/* F = F2 F1 (row-major), for the trace. */
+static void full_jacobian(const ekf_scalar_t d1[ATT_GEN_F1_NNZ], const ekf_scalar_t d2[ATT_GEN_F2_NNZ],
+                          ekf_scalar_t F[ATT_N * ATT_N])
+{
+    ekf_scalar_t F1[ATT_N * ATT_N], F2[ATT_N * ATT_N];
+    int i, j, k;
+    for (i = 0; i < ATT_N * ATT_N; ++i) {
+        F1[i] = F2[i] = (i % (ATT_N + 1) == 0) ? EKF_C(1) : EKF_C(0);
+    }
+    for (k = 0; k < ATT_GEN_F1_NNZ; ++k) {
+        const int at = att_gen_f1_pattern[k].row * ATT_N + att_gen_f1_pattern[k].col;
+        F1[at] = ekf_add(F1[at], d1[k]);
+    }
+    for (k = 0; k < ATT_GEN_F2_NNZ; ++k) {
+        const int at = att_gen_f2_pattern[k].row * ATT_N + att_gen_f2_pattern[k].col;
+        F2[at] = ekf_add(F2[at], d2[k]);
+    }
+    for (i = 0; i < ATT_N; ++i) {
+        for (j = 0; j < ATT_N; ++j) {
+            ekf_scalar_t a = EKF_C(0);
+            for (k = 0; k < ATT_N; ++k) {
+                a = ekf_mac(a, F2[i * ATT_N + k], F1[k * ATT_N + j]);
+            }
+            F[i * ATT_N + j] = a;
+        }
+    }
+}
+
+ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scalar_t dt, att_trace_t *trace)
 {
     ekf_scalar_t xn[ATT_N];
     ekf_scalar_t d1[ATT_GEN_F1_NNZ], d2[ATT_GEN_F2_NNZ];
     ekf_scalar_t inc_var[3];
-    att_trig_t tm, tn;
+    att_motion_t mo;
     int i;
 
-    att_model_transition(v->x, NULL, dt, s->gimbal_limit, xn, &tm, &tn);
+    att_model_transition(v->x, NULL, dt, s->gimbal_limit, xn, &mo);
     if (!att_state_finite(xn)) {
         return EKF_ERR_NUMERIC;
     }
     /* F = F2 F1 (docs/derivation.md, "State Jacobian") */
-    att_gen_transition_factors(&tm, &tn, v->x, dt, d1, d2);
+    att_gen_transition_factors(&mo.t0, &mo.t, v->x, mo.rot, mo.jd, d1, d2);
+    if (trace != NULL) {
+        for (i = 0; i < ATT_N; ++i) {
+            trace->x_pre[i] = v->x[i];
+        }
+        att_cov_to_full(&v->cov, trace->P_pre);
+        full_jacobian(d1, d2, trace->F);
+    }
     /* F P F^T + Q, Q = G diag(rate_walk^2 dt) G^T (with the propagation; refused if the
      * Jacobian is not finite) + angle random walk + the discrete kinematics' own error:
      * independent, euler_rate_rel of the variance of each angle's increment and of each
@@ -116,20 +131,30 @@ ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scala
         att_cov_add_var(&v->cov, ATT_PHI + i, ekf_mul(s->euler_rate_rel, inc_var[i]));
     }
     att_cov_scale_diag(&v->cov, ATT_PHID, 3, s->euler_rate_rel);
+    gap_noise(v, s, &mo, dt);
     att_bias_predict(&v->bias, &s->bias, d1, dt);
     att_consider_predict(&v->consider,
                          ekf_add(ekf_add(ekf_sq(v->x[ATT_P]), ekf_sq(v->x[ATT_Q])), ekf_sq(v->x[ATT_R])),
-                         s->angle_walk_rate, ekf_sq(tn.secth), dt);
+                         s->angle_walk_rate, ekf_sq(mo.t.secth), dt);
 
     for (i = 0; i < ATT_N; ++i) {
         v->x[i] = xn[i];
     }
     v->last_dt = dt;
-    if (s->accel_lpf_tau > EKF_C(0)) {
-        accel_lp_turn(v, s, dt);
+    if (!(ekf_abs(xn[ATT_THETA]) > s->gimbal_limit)) {
+        /* the new angles' trigonometry, unclamped here: the measurement stage that follows
+         * takes it instead of computing it again (att_sensor_trig) */
+        v->trig = mo.t;
+        v->trig_at[0] = xn[ATT_PHI];
+        v->trig_at[1] = xn[ATT_THETA];
     }
+    if (s->accel_lpf_tau > EKF_C(0)) {
+        att_lowpass_turn(v, s, mo.rot);
+    }
+    /* the composed rotation's angles are in range already; passing over the top shows as a
+     * half turn of roll and heading (the Jacobian was taken at the new angles) */
     v->flags &= ~ATT_FLAG_REMAPPED;
-    if (att_normalise(v)) {
+    if (mo.remapped) {
         v->flags |= ATT_FLAG_REMAPPED;
         ekf_count(&v->diag.remaps);
     }
@@ -150,6 +175,13 @@ ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scala
         if (v->gated_time[i] > EKF_C(0)) {
             v->gated_time[i] = ekf_add(v->gated_time[i], dt);
         }
+    }
+    if (trace != NULL) {
+        for (i = 0; i < ATT_N; ++i) {
+            trace->x_pred[i] = v->x[i];
+        }
+        att_cov_to_full(&v->cov, trace->P_pred);
+        trace->predicted = 1;
     }
     return EKF_OK;
 }

@@ -17,19 +17,16 @@
 
 #include <stdint.h>
 
+#include "att_settings_table.h"
 #include "ekf_scalar.h"
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
+/* Its settings (rows ATT_SETTINGS_REST of att_settings_table.h; names "rest.*"). */
 typedef struct {
-    ekf_scalar_t rest_gyro;  /* rad/s: rate (and its deviation) below which the sensor may rest */
-    ekf_scalar_t rest_accel; /* m/s^2: deviation of the specific force from its low-passed value */
-    ekf_scalar_t rest_time;  /* s of continuous rest before the offset is learned */
-    ekf_scalar_t rest_tau;   /* s: time constant of the low-pass filters of the detector */
-    ekf_scalar_t bias_tau;   /* s: averaging time of the offset; 0 = no offset estimation */
-    ekf_scalar_t bias_max;   /* rad/s: |offset| per axis never exceeds this */
+    ATT_SETTINGS_REST(ATT_SETTING_FIELD)
 } att_rest_settings_t;
 
 typedef struct {

@@ -52,6 +52,13 @@ typedef enum {
 /* Short constant name of a status, e.g. "EKF_ERR_NOT_FINITE". Never NULL. */
 const char *ekf_status_str(ekf_status_t status);
 
+/* 1 for a status that refuses the call (nothing applied); 0 for EKF_OK, EKF_GATED and
+ * EKF_SKIPPED (the call was applied). */
+static inline int ekf_status_is_error(ekf_status_t status)
+{
+    return status != EKF_OK && status != EKF_GATED && status != EKF_SKIPPED;
+}
+
 /* One structurally non-zero entry of a sparse matrix. */
 typedef struct {
     uint8_t row;

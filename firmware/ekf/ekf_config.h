@@ -45,31 +45,6 @@ extern "C" {
 #define EKF_SCALAR_LINK_NAME(name) name##_for_EKF_SCALAR_FLOAT
 #endif
 
-/* Covariance implementation of the attitude filter (firmware/att/att_cov.h; exactly one):
- *   ATT_COV_GENERATED  packed symmetric P (45 entries) with generated straight-line kernels
- *                      (att_cov_gen.c): the default for float and double.
- *   ATT_COV_FX         32-bit words with a power-of-two scale per state (att_cov_fx.c,
- *                      docs/fixed_point.md): the default for fixed point.
- *   ATT_COV_REFERENCE  full row-major 9x9 P on the generic routines of ekf.h
- *                      (att_cov_ref.c): the same filter unoptimised (-DATT_COV_REFERENCE=1).
- */
-#if (defined(ATT_COV_REFERENCE) + defined(ATT_COV_GENERATED) + defined(ATT_COV_FX)) > 1
-#error "ekf_config.h: define at most one of ATT_COV_REFERENCE, ATT_COV_GENERATED, ATT_COV_FX"
-#endif
-#if defined(ATT_COV_FX) && !defined(EKF_SCALAR_FIXED)
-#error "ekf_config.h: ATT_COV_FX is the fixed-point build's covariance (EKF_SCALAR_FIXED)"
-#endif
-#if defined(ATT_COV_GENERATED) && defined(EKF_SCALAR_FIXED)
-#error "ekf_config.h: ATT_COV_GENERATED is for float and double (fixed point: ATT_COV_FX)"
-#endif
-#if !defined(ATT_COV_REFERENCE) && !defined(ATT_COV_GENERATED) && !defined(ATT_COV_FX)
-#if defined(EKF_SCALAR_FIXED)
-#define ATT_COV_FX 1
-#else
-#define ATT_COV_GENERATED 1
-#endif
-#endif
-
 /* Largest state dimension any generic routine must handle. Sizes two scratch vectors on
  * the stack of ekf_update_scalar() and one index table of ekf_cov_propagate(); the models'
  * own arrays are sized by their own constants. At most 255 (dimensions are uint8_t). */

@@ -13,7 +13,7 @@
  * sample after the alignment the full att_step is timed on the filter; the public stages
  * (att_update_gyro, att_predict, att_update_accel, att_update_mag, each a whole call with
  * its own guard and commit) one by one on a copy of it; and the parts of att_step one by
- * one on a third copy, in att_step's order (att_internal.h): the saved copy of the
+ * one on a third copy, in att_step's order (att.c): the saved copy of the
  * variables (the commit's cost on the normal path), the rest detector, the gyroscope,
  * prediction, accelerometer and magnetometer stages, the guard with the last finiteness
  * check. All three must end in the same state, bit for bit, or the benchmark fails; what
@@ -32,7 +32,11 @@
 #include <string.h>
 
 #include "att.h"
-#include "att_internal.h"
+#include "att_accel.h"
+#include "att_gyro.h"
+#include "att_mag.h"
+#include "att_predict.h"
+#include "att_state.h"
 #include "ekf_util.h"
 #include "target.h"
 #include "testsim.h"
@@ -186,13 +190,13 @@ int main(int argc, char **argv)
         }
         c_step = to_insns(elapsed(t0, t1) - base);
         stat_add(&st_step, c_step);
-        if (status != EKF_OK && status != EKF_GATED && status != EKF_SKIPPED) {
+        if (ekf_status_is_error(status)) {
             ++errors;
         }
 
         /* the same stages one by one, in att_step's order */
         t0 = TARGET_SYSTICK_NOW;
-        (void)att_update_gyro(&staged, s.gyro);
+        (void)att_update_gyro(&staged, s.gyro, s.dt);
         t1 = TARGET_SYSTICK_NOW;
         c_gyro = to_insns(elapsed(t0, t1) - base);
         t0 = TARGET_SYSTICK_NOW;
@@ -200,11 +204,11 @@ int main(int argc, char **argv)
         t1 = TARGET_SYSTICK_NOW;
         c_predict = to_insns(elapsed(t0, t1) - base);
         t0 = TARGET_SYSTICK_NOW;
-        (void)att_update_accel(&staged, s.accel);
+        (void)att_update_accel(&staged, s.accel, s.dt);
         t1 = TARGET_SYSTICK_NOW;
         c_accel = to_insns(elapsed(t0, t1) - base);
         t0 = TARGET_SYSTICK_NOW;
-        (void)att_update_mag(&staged, s.mag);
+        (void)att_update_mag(&staged, s.mag, s.dt);
         t1 = TARGET_SYSTICK_NOW;
         c_mag = to_insns(elapsed(t0, t1) - base);
         stat_add(&st_gyro, c_gyro);
@@ -231,20 +235,20 @@ int main(int argc, char **argv)
             t1 = TARGET_SYSTICK_NOW;
             c_rest = to_insns(elapsed(t0, t1) - base);
             t0 = TARGET_SYSTICK_NOW;
-            (void)att_stage_gyro(pv, set, s.gyro);
+            (void)att_stage_gyro(pv, set, s.gyro, s.dt);
             t1 = TARGET_SYSTICK_NOW;
             c_gyro = to_insns(elapsed(t0, t1) - base);
             t0 = TARGET_SYSTICK_NOW;
-            (void)att_stage_predict(pv, set, s.dt);
+            (void)att_stage_predict(pv, set, s.dt, NULL);
             ekf_count(&pv->diag.steps);
             t1 = TARGET_SYSTICK_NOW;
             c_predict = to_insns(elapsed(t0, t1) - base);
             t0 = TARGET_SYSTICK_NOW;
-            (void)att_stage_accel(pv, set, s.accel);
+            (void)att_stage_accel(pv, set, s.accel, s.dt);
             t1 = TARGET_SYSTICK_NOW;
             c_accel = to_insns(elapsed(t0, t1) - base);
             t0 = TARGET_SYSTICK_NOW;
-            (void)att_stage_mag(pv, set, s.mag);
+            (void)att_stage_mag(pv, set, s.mag, s.dt);
             t1 = TARGET_SYSTICK_NOW;
             c_mag = to_insns(elapsed(t0, t1) - base);
             t0 = TARGET_SYSTICK_NOW;

@@ -28,6 +28,13 @@ Fair start: Madgwick, Mahony and Fusion start from the same initial attitude, co
 the mean accelerometer and magnetometer of the first `init_samples` samples (default 10, our
 filter's align_samples) (6D: from the accelerometer only, heading 0). VQF initialises itself
 (its first samples), our filter aligns itself from its first align_samples samples.
+
+A magnetometer row of NaN (no sample at that instant, e.g. a slower magnetometer) is passed as
+each method's own "no magnetometer sample": [0 0 0] for VQF online and Fusion (both skip a
+zero vector), the magnetometer-free update for Madgwick and Mahony (ours: the binding clears
+ATT_HAS_MAG). VQF offline
+takes a heading from every row, so there such a row is interpolated between the nearest
+samples.
 """
 
 from __future__ import annotations
@@ -137,15 +144,31 @@ def _run_vqf(rec: Recording, m, cfg):
     ts = 1.0 / rec.rate_hz
     gyr = np.ascontiguousarray(rec.gyr, dtype=np.float64)
     acc = np.ascontiguousarray(rec.acc, dtype=np.float64)
-    mag = None if m.six_d or rec.mag is None else np.ascontiguousarray(rec.mag, dtype=np.float64)
+    mag = None
+    online = m.key.startswith("vqf-online")
+    if not (m.six_d or rec.mag is None):
+        mag = np.ascontiguousarray(_vqf_mag(rec.mag, online), dtype=np.float64)
     t0 = time.process_time()
-    if m.key.startswith("vqf-online"):
+    if online:
         f = vqf.VQF(ts)
         out = f.updateBatch(gyr, acc, mag) if mag is not None else f.updateBatch(gyr, acc)
     else:
         out = vqf.offlineVQF(gyr, acc, mag, ts)
     sec = time.process_time() - t0
     return np.asarray(out["quat6D" if m.six_d else "quat9D"], dtype=np.float64), sec, {}
+
+
+def _vqf_mag(mag: np.ndarray, online: bool) -> np.ndarray:
+    """Magnetometer rows for VQF: a NaN row (no sample) is [0 0 0], which VQF's causal filter
+    skips; its offline variant uses every row (a heading from each), so there a missing row is
+    interpolated linearly between the nearest samples (held at the ends)."""
+    ok = np.isfinite(mag).all(axis=1)
+    if ok.all():
+        return mag
+    if online or not ok.any():
+        return np.where(ok[:, None], mag, 0.0)
+    idx = np.arange(len(mag))
+    return np.stack([np.interp(idx, idx[ok], mag[ok, i]) for i in range(3)], axis=1)
 
 
 def _run_fusion(rec: Recording, m, cfg):
@@ -176,6 +199,10 @@ def _run_fusion(rec: Recording, m, cfg):
     n = len(rec)
     q = np.empty((n, 4))
     t0 = time.process_time()
+    if mag is not None:
+        # no sample (NaN row): a zero vector, which Fusion's update skips (its magnetometer-free
+        # update would reset the heading to 0 while the filter initialises)
+        mag = np.where(np.isfinite(mag), mag, 0.0)
     for i in range(n):
         g = bias.update(gyr[i]) if bias is not None else gyr[i]
         if mag is None:
@@ -218,9 +245,10 @@ def _run_ahrs(rec: Recording, m, cfg):
         for i in range(1, n):
             q[i] = upd(q[i - 1], gyr[i], acc[i])
     else:
-        upd = f.updateMARG
+        has_mag = np.isfinite(mag).all(axis=1)   # a NaN row: no magnetometer sample
         for i in range(1, n):
-            q[i] = upd(q[i - 1], gyr[i], acc[i], mag[i])
+            q[i] = (f.updateMARG(q[i - 1], gyr[i], acc[i], mag[i]) if has_mag[i]
+                    else f.updateIMU(q[i - 1], gyr[i], acc[i]))
     sec = time.process_time() - t0
     if m.family == "madgwick":
         q = nwu_to_enu(q)

@@ -16,6 +16,16 @@ Cost: wall time of the method's own computation divided by the number of samples
 machine. What is timed is stated per method (COST_NOTES): for ours only the C calls, for VQF
 its C++ batch call, for Fusion the per-sample Python->C call (so it includes the binding's
 per-call overhead), for Madgwick/Mahony ahrs's pure-Python update.
+
+Other rates and dropped samples (RunConfig.transform, transform.py): every method runs on the
+same transformed recording. Ours takes the time step of every sample from its timestamps; the
+fixed-rate methods get the recording on its nominal grid with missing slots filled
+(transform.regular_feed) and are scored on the samples present.
+
+Same trials for every method: a trial a method cannot run (9D without a usable magnetometer:
+no imu_mag, or every row NaN) is not run in that dimension, and a trial on which a method gives
+no score is left out of every method's mean of that dimension; both are listed in the result
+('excluded') and printed under the table.
 """
 
 from __future__ import annotations
@@ -24,9 +34,8 @@ import fnmatch
 import json
 import math
 import os
-import platform
-import subprocess
 import time
+from collections import OrderedDict
 from dataclasses import dataclass, field
 from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
@@ -41,8 +50,9 @@ from .baselines import (FUSION_BIAS_SETTINGS, FUSION_SETTINGS, GRAVITY, MADGWICK
 from .bench_report import (format_consistency, format_costs, format_markdown, format_summary,  # noqa: F401
                            format_trials, plot_groups)
 from .io import Recording, read_recording
-
-REPO_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from .runinfo import (REPO_ROOT, clean_json, display_path, git_info, machine_info,  # noqa: F401
+                      package_versions)
+from .transform import Transform, regular_feed
 # The BROAD trials: $ATTEKF_BROAD_DIR, else ../shared/data/broad next to this source tree
 # (docs/accuracy.md); DEFAULT_DATA_TEXT is how help and docs name it.
 DEFAULT_DATA_TEXT = "$ATTEKF_BROAD_DIR, else ../shared/data/broad next to the repository"
@@ -74,6 +84,7 @@ class RunConfig:
     variants: Dict[str, Dict[str, object]] = field(default_factory=dict)  # key -> spec (ablations)
     fusion: Dict[str, float] = field(default_factory=lambda: dict(FUSION_SETTINGS))
     rename: Dict[str, str] = field(default_factory=dict)  # ablation setting -> the build's name
+    transform: Transform = field(default_factory=Transform)   # rate change / drops (transform.py)
 
 
 @dataclass
@@ -156,11 +167,11 @@ def ablation_methods() -> List[Method]:
 
 def oracle_methods() -> List[Method]:
     return [Method(f"ours-{d}:oracle-gyro-bias", "ours", six,
-                   f"this EKF {d.upper()}, gyro bias removed using the truth's rest phases "
+                   f"this EKF {d.upper()}, gyro bias removed using the truth's rest periods "
                    "(ANALYSIS ONLY)", default=False, analysis_only=True, oracle_bias=True,
-                   note="ANALYSIS ONLY: gyro bias = mean gyro over the non-movement samples "
-                        "(the truth's movement mask), subtracted before filtering; measures "
-                        "what the missing gyro-bias state costs, not a result")
+                   note="ANALYSIS ONLY: gyro bias = mean gyro over the samples at rest by the "
+                        "truth's angular rate (rest.py), subtracted before filtering; measures "
+                        "what an exact offset would be worth, not a result")
             for six, d in ((False, "9d"), (True, "6d"))]
 
 
@@ -198,11 +209,15 @@ def select_methods(spec: Optional[str], ablation: bool = False, oracle: bool = F
                 hit = [known[tok]]
             elif tok in ("9d", "6d"):
                 hit = [m for m in base if m.default and m.dim.lower() == tok]
+            elif any(m.key in (tok + "-9d", tok + "-6d") for m in base):
+                # a family or variant name: both dimensions (vqf-online, fusion-bare, ours, vqf)
+                hit = [m for m in base if m.key in (tok + "-9d", tok + "-6d")]
             else:
-                hit = [m for m in base if (m.family == tok and m.default) or fnmatch.fnmatch(m.key, tok)]
+                hit = [m for m in base if fnmatch.fnmatch(m.key, tok)]
             if not hit:
-                raise ValueError(f"unknown method '{tok}' (known: {', '.join(known)}; or a family "
-                                 "ours/vqf/fusion/madgwick/mahony, 9d, 6d, default, all)")
+                raise ValueError(f"unknown method '{tok}' (known: {', '.join(known)}; or a name without "
+                                 "its dimension for both: ours, vqf, vqf-online, fusion, fusion-bare, madgwick, "
+                                 "mahony; 9d, 6d, default, all)")
             chosen += [m for m in hit if m not in chosen]
     extra = (ablation_methods() if ablation else []) + (oracle_methods() if oracle else [])
     extra += [known[k] for k in (cfg.variants if cfg else {})]
@@ -221,14 +236,18 @@ def select_methods(spec: Optional[str], ablation: bool = False, oracle: bool = F
 # Running one method on one recording
 # ---------------------------------------------------------------------------------------------
 def oracle_gyro_bias(rec: Recording) -> np.ndarray:
-    """ANALYSIS ONLY: mean gyro over the samples the truth marks as not moving (rad/s)."""
-    rest = np.ones(len(rec), bool) if rec.movement is None else ~rec.movement.astype(bool)
+    """ANALYSIS ONLY: mean gyro over the samples the truth shows at rest (rest.py: the truth's
+    rate below 2 deg/s for at least 1 s), rad/s; zero without such samples."""
+    from .rest import rest_mask
+    rest = rest_mask(rec.t, rec.quat_ref) if rec.quat_ref is not None else np.zeros(len(rec), bool)
     if not rest.any():
         return np.zeros(3)
     return rec.gyr[rest].mean(axis=0)
 
 
-def _run_ours(rec: Recording, m: Method, cfg: RunConfig) -> Tuple[np.ndarray, float, Dict[str, object]]:
+def run_ours_arrays(rec: Recording, m: Method, cfg: RunConfig):
+    """Our filter on a recording: (quaternions with NaN before alignment, the reported angle
+    covariance (N, 6) likewise NaN, the binding's Result, extra info)."""
     from . import native
     settings = dict(cfg.settings)
     settings.update({cfg.rename.get(k, k): v for k, v in m.settings.items()})
@@ -241,9 +260,14 @@ def _run_ours(rec: Recording, m: Method, cfg: RunConfig) -> Tuple[np.ndarray, fl
     res = native.run_arrays(rec.t, gyr, rec.acc, None if m.six_d else rec.mag, settings, cfg.scalar)
     q = res.quat.copy()
     q[~res.aligned] = np.nan
+    cov = res.angle_cov.copy()
+    cov[~res.aligned] = np.nan
+    return q, cov, res, extra
+
+
+def _run_ours(rec: Recording, m: Method, cfg: RunConfig) -> Tuple[np.ndarray, float, Dict[str, object]]:
+    q, cov, res, extra = run_ours_arrays(rec, m, cfg)
     if rec.quat_ref is not None:   # does the reported covariance cover the error (consistency.py)
-        cov = res.angle_cov.copy()
-        cov[~res.aligned] = np.nan
         extra.update(C.flat(C.consistency(q, rec.quat_ref, angle_cov=cov,
                                           movement=rec.movement, six_d=m.six_d)))
     summary = res.summary()
@@ -267,11 +291,27 @@ RUNNERS: Dict[str, Callable] = {"ours": _run_ours, "vqf": _run_vqf, "fusion": _r
                                 "madgwick": _run_ahrs, "mahony": _run_ahrs}
 
 
+def mag_usable(rec: Recording) -> Optional[str]:
+    """None if the recording has a magnetometer sample to run 9D on, else why not."""
+    if rec.mag is None:
+        return "no magnetometer (imu_mag absent)"
+    if not np.isfinite(rec.mag).all(axis=1).any():
+        return "no magnetometer sample (imu_mag all NaN)"
+    return None
+
+
 def run_method(rec: Recording, m: Method, cfg: RunConfig) -> Tuple[np.ndarray, float, Dict[str, object]]:
-    """(quaternions body->ENU (N, 4), seconds of measured computation, extra info)."""
-    if m.six_d is False and rec.mag is None:
-        raise ValueError(f"{rec.source}: {m.key} needs a magnetometer, the recording has none")
-    return RUNNERS[m.family](rec, m, cfg)
+    """(quaternions body->ENU (N, 4), seconds of measured computation, extra info). A
+    fixed-rate method on a recording with missing samples runs on its regular feed
+    (transform.regular_feed) and gives the estimates at the samples present."""
+    why = None if m.six_d else mag_usable(rec)
+    if why:
+        raise ValueError(f"{rec.source}: {m.key} needs a magnetometer: {why}")
+    if m.family == "ours":
+        return _run_ours(rec, m, cfg)
+    feed, slots = regular_feed(rec)
+    q, sec, extra = RUNNERS[m.family](feed, m, cfg)
+    return (q if slots is None else q[slots]), sec, extra
 
 
 def score(rec: Recording, q: np.ndarray, six_d: bool) -> Dict[str, object]:
@@ -286,20 +326,27 @@ def score(rec: Recording, q: np.ndarray, six_d: bool) -> Dict[str, object]:
 # ---------------------------------------------------------------------------------------------
 # A whole benchmark
 # ---------------------------------------------------------------------------------------------
-_REC_CACHE: Dict[str, Recording] = {}
+_REC_CACHE: "OrderedDict[tuple, Recording]" = OrderedDict()
+_REC_CACHE_SIZE = 4      # recordings kept per worker (a trial at a few rates)
 
 
-def _recording(path: str) -> Recording:
-    if path not in _REC_CACHE:
-        _REC_CACHE.clear()          # one trial at a time per worker is enough
-        _REC_CACHE[path] = read_recording(path)
-    return _REC_CACHE[path]
+def _recording(path: str, transform: Optional[Transform] = None) -> Recording:
+    """The recording of path, transformed; the last few are kept (per worker process)."""
+    transform = transform or Transform()
+    key = (path, transform)
+    if key not in _REC_CACHE:
+        rec = read_recording(path)
+        _REC_CACHE[key] = rec if transform.identity else transform.apply(rec)
+        while len(_REC_CACHE) > _REC_CACHE_SIZE:
+            _REC_CACHE.popitem(last=False)
+    _REC_CACHE.move_to_end(key)
+    return _REC_CACHE[key]
 
 
 def run_task(task: Tuple[str, str, RunConfig]) -> Dict[str, object]:
     """One (trial path, method key) pair; the unit of work of the pool (picklable)."""
     path, key, cfg = task
-    rec = _recording(path)
+    rec = _recording(path, cfg.transform)
     m = all_methods(cfg)[key]
     q, sec, extra = run_method(rec, m, cfg)
     row = score(rec, q, m.six_d)
@@ -346,98 +393,67 @@ def _mean(vals: Sequence[float]) -> float:
     return float(np.mean(vals)) if vals else float("nan")
 
 
+def common_trials(rows: List[Dict[str, object]], methods: List[Method], trials: List[str],
+                  not_run: Optional[Dict[Tuple[str, str], str]] = None
+                  ) -> Tuple[Dict[str, List[str]], List[Dict[str, str]]]:
+    """({dim: the trials every method of that dimension has a finite score on}, [{trial, dim,
+    reason} for each trial left out of a dimension's means]). not_run: (trial, dim) -> why the
+    dimension was not run on the trial."""
+    by = {(r["method"], r["trial"]): r for r in rows}
+    not_run = not_run or {}
+    used: Dict[str, List[str]] = {}
+    excluded: List[Dict[str, str]] = []
+    for dim in ("9D", "6D"):
+        keys = [m.key for m in methods if m.dim == dim]
+        if not keys:
+            continue
+        used[dim] = []
+        for t in trials:
+            bad = [k for k in keys if not (k, t) in by or not _finite(by[(k, t)].get("total"))]
+            if not bad:
+                used[dim].append(t)
+            elif (t, dim) in not_run:
+                excluded.append({"trial": t, "dim": dim, "reason": f"not run: {not_run[(t, dim)]}"})
+            else:
+                excluded.append({"trial": t, "dim": dim, "reason": f"no score from {', '.join(bad)}"})
+    return used, excluded
+
+
+def _finite(v) -> bool:
+    return isinstance(v, (int, float, np.floating)) and math.isfinite(v)
+
+
 def aggregate(rows: List[Dict[str, object]], methods: List[Method], trials: List[str],
               group_names: List[str], trial_groups: Dict[str, List[str]]) -> Dict[str, object]:
-    """Per method: per-trial rows, mean per group (trials.json) and overall, cost."""
+    """Per method: per-trial rows, mean per group (trials.json) and overall over the trials
+    every method of its dimension has scored (common_trials), cost."""
     by = {(r["method"], r["trial"]): r for r in rows}
+    used, _ = common_trials(rows, methods, trials)
     out: Dict[str, object] = {}
     for m in methods:
         per = {t: by[(m.key, t)] for t in trials if (m.key, t) in by}
+        common = used.get(m.dim, [])
         groups = {}
         for g in group_names:
-            members = [t for t in trials if g == "all_trials" or g in trial_groups.get(t, [])]
+            members = [t for t in common if g == "all_trials" or g in trial_groups.get(t, [])]
             if not members:
                 continue
             groups[g] = {"n": len(members)}
             for k in M_KEYS:
-                groups[g][k] = _mean([per[t][k] for t in members if t in per])
+                groups[g][k] = _mean([per[t][k] for t in members])
         samples = sum(int(r["samples"]) for r in per.values())
         seconds = sum(float(r["seconds"]) for r in per.values())
         out[m.key] = {
             "trials": per,
             "groups": groups,
-            "overall": {k: _mean([r[k] for r in per.values()]) for k in M_KEYS},
+            "overall": {k: _mean([per[t][k] for t in common]) for k in M_KEYS},
+            "n_trials": len(common),
             "us_per_sample": 1e6 * seconds / samples if samples else float("nan"),
             "seconds": seconds,
             "samples": samples,
-            "consistency": C.aggregate(per),
+            "consistency": C.aggregate({t: per[t] for t in common}),
         }
     return out
-
-
-
-def git_info(repo: str) -> Dict[str, object]:
-    """Commit and whether the tree has uncommitted changes (read-only git calls)."""
-    def git(*args):
-        return subprocess.run(["git", "-C", repo, *args], capture_output=True, text=True, timeout=10)
-    try:
-        head = git("rev-parse", "--short=12", "HEAD")
-        status = git("status", "--porcelain", "--untracked-files=no")
-    except (OSError, subprocess.SubprocessError):
-        return {"commit": None, "uncommitted_changes": None}
-    if head.returncode != 0:
-        return {"commit": None, "uncommitted_changes": None}
-    changed = [ln[3:] for ln in status.stdout.splitlines() if ln.strip()]
-    out = {"commit": head.stdout.strip(), "uncommitted_changes": bool(changed), "changed_files": changed}
-    if changed:   # identifies the working tree's state (tracked files) for a later comparison
-        import hashlib
-        diff = subprocess.run(["git", "-C", repo, "diff", "HEAD"], capture_output=True, timeout=30)
-        out["diff_sha256"] = hashlib.sha256(diff.stdout).hexdigest()[:16]
-    return out
-
-
-def machine_info() -> Dict[str, object]:
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8") as fh:
-            for line in fh:
-                if line.startswith("model name"):
-                    cpu = line.split(":", 1)[1].strip()
-                    break
-    except OSError:
-        pass
-    return {"cpu": cpu, "cpus": os.cpu_count(), "python": platform.python_version(),
-            "system": platform.platform()}
-
-
-def package_versions() -> Dict[str, Optional[str]]:
-    from importlib import metadata
-    out = {}
-    for name in ("vqf", "imufusion", "AHRS", "numpy"):
-        try:
-            out[name] = metadata.version(name)
-        except metadata.PackageNotFoundError:
-            out[name] = None
-    return out
-
-
-# ---------------------------------------------------------------------------------------------
-# Output
-# ---------------------------------------------------------------------------------------------
-def clean_json(obj):
-    """NaN/inf -> None, numpy scalars -> Python (strict JSON)."""
-    if isinstance(obj, dict):
-        return {k: clean_json(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [clean_json(v) for v in obj]
-    if isinstance(obj, (np.floating, float)):
-        v = float(obj)
-        return v if math.isfinite(v) else None
-    if isinstance(obj, np.integer):
-        return int(obj)
-    if isinstance(obj, np.bool_):
-        return bool(obj)
-    return obj
 
 
 def _worker_init() -> None:
@@ -448,18 +464,6 @@ def _worker_init() -> None:
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
-def display_path(path: str) -> str:
-    """A path as results name it: relative to the repository when inside it or next to it
-    (build/host/..., ../shared/data/broad), so that no machine's directory ends up in docs."""
-    full = os.path.abspath(path)
-    parent = os.path.dirname(REPO_ROOT)
-    if full == REPO_ROOT or full.startswith(REPO_ROOT + os.sep):
-        return os.path.relpath(full, REPO_ROOT)
-    if full.startswith(parent + os.sep):
-        return os.path.relpath(full, REPO_ROOT)
-    return path
-
-
 def run_benchmark(trial_paths: List[str], methods: List[Method], cfg: RunConfig, jobs: int = 1,
                   progress=None, data_dir: Optional[str] = None) -> Dict[str, object]:
     """Runs every method on every trial (a pool of `jobs` processes over (trial, method) pairs)
@@ -467,9 +471,16 @@ def run_benchmark(trial_paths: List[str], methods: List[Method], cfg: RunConfig,
     from . import native
     group_names, trial_groups = load_groups(data_dir or os.path.dirname(trial_paths[0]))
     trials = [os.path.splitext(os.path.basename(p))[0] for p in trial_paths]
+    # 9D is not run on a trial without a usable magnetometer (listed, left out of the 9D means)
+    not_run: Dict[Tuple[str, str], str] = {}
+    for p, t in zip(trial_paths, trials):
+        why = mag_usable(read_recording(p))
+        if why and any(not m.six_d for m in methods):
+            not_run[(t, "9D")] = why
     # slow methods first so that the pool does not end on one long task
     order = {"madgwick": 0, "mahony": 0, "fusion": 1, "ours": 2, "vqf": 3}
-    tasks = [(p, m.key, cfg) for m in sorted(methods, key=lambda m: order[m.family]) for p in trial_paths]
+    tasks = [(p, m.key, cfg) for m in sorted(methods, key=lambda m: order[m.family])
+             for p, t in zip(trial_paths, trials) if (t, m.dim) not in not_run]
     tasks.sort(key=lambda t: (order[all_methods(cfg)[t[1]].family], t[0]))
     rows: List[Dict[str, object]] = []
     t_wall = time.perf_counter()
@@ -520,6 +531,11 @@ def run_benchmark(trial_paths: List[str], methods: List[Method], cfg: RunConfig,
         "packages": package_versions(),
         "machine": dict(machine_info(), jobs=jobs),
         "wall_seconds": wall,
+        "transform": {"decimate": cfg.transform.decimate, "resample_hz": cfg.transform.resample_hz,
+                      "drop": cfg.transform.drop, "seed": cfg.transform.seed,
+                      "drop_gyro": cfg.transform.drop_gyro,
+                      "label": cfg.transform.label()},
+        "excluded": common_trials(rows, methods, trials, not_run)[1],
         "results": aggregate(rows, methods, trials, group_names, trial_groups),
     }
     return result

@@ -33,6 +33,10 @@ def format_summary(result: Dict[str, object]) -> str:
     n = len(result["trials"])
     lines = [f"BROAD benchmark, {n} trial(s): mean over trials of the RMSE over the movement samples, deg",
              "6D rows: the mean heading offset is removed before scoring (heading drift still counts)."]
+    tf = result.get("transform") or {}
+    if tf.get("label", "native") != "native":
+        lines.append(f"Recordings transformed: {tf['label']} (transform.py; ours gets each sample's time step, "
+                     "fixed-rate methods the nominal grid with missing samples filled).")
     rows = []
     for key, r in res.items():
         o = r["overall"]
@@ -47,11 +51,30 @@ def format_summary(result: Dict[str, object]) -> str:
     if len(groups) > 1:
         lines.append("")
         lines.append("total RMSE per group (deg; n = trials in the group):")
-        head = ["method"] + [f"{g}({next(iter(res.values()))['groups'][g]['n']})" for g in groups]
-        rows = [[key] + [_f(r["groups"][g]["total"]) if g in r["groups"] else "" for g in groups]
-                for key, r in res.items()]
+        n_of = {g: next(r["groups"][g]["n"] for r in res.values() if g in r["groups"]) for g in groups}
+        head = ["method"] + [f"{g}({n_of[g]})" for g in groups]
+
+        def cell(r, g):   # a dimension whose common trials differ says how many it averages
+            if g not in r["groups"]:
+                return ""
+            n = r["groups"][g]["n"]
+            return _f(r["groups"][g]["total"]) + ("" if n == n_of[g] else f" ({n})")
+        rows = [[key] + [cell(r, g) for g in groups] for key, r in res.items()]
         lines += _table(head, rows)
+    lines += format_excluded(result)
     return "\n".join(lines)
+
+
+def format_excluded(result: Dict[str, object]) -> List[str]:
+    """note lines: per dimension, the trials left out of every method's means and why."""
+    out = []
+    for dim in ("9D", "6D"):
+        ex = [e for e in result.get("excluded", []) if e["dim"] == dim]
+        if ex:
+            used = len(result["trials"]) - len(ex)
+            out.append(f"note: {dim} means over {used} of {len(result['trials'])} trial(s), the same for every "
+                       f"{dim} method; left out: " + "; ".join(f"{e['trial']} ({e['reason']})" for e in ex))
+    return out
 
 
 def format_trials(result: Dict[str, object], metric: str = "total") -> str:
@@ -105,14 +128,15 @@ def format_markdown(result: Dict[str, object]) -> str:
                      f"{_f(r['us_per_sample'], 2 if r['us_per_sample'] < 100 else 0)} |")
     groups = [g for g in result["group_names"] if any(g in r["groups"] for r in res.values())]
     if len(groups) > 1:
-        first = next(iter(res.values()))["groups"]
+        n_of = {g: next(r["groups"][g]["n"] for r in res.values() if g in r["groups"]) for g in groups}
         lines += ["", "Total RMSE (deg) per group (number of trials):", "",
-                  "| method | " + " | ".join(f"{g} ({first[g]['n']})" for g in groups) + " |",
+                  "| method | " + " | ".join(f"{g} ({n_of[g]})" for g in groups) + " |",
                   "|---|" + "---:|" * len(groups)]
         for key, r in res.items():
             lines.append(f"| `{key}` | " + " | ".join(_f(r["groups"][g]["total"]) if g in r["groups"] else ""
                                                     for g in groups) + " |")
-    return "\n".join(lines) + "\n"
+    notes = format_excluded(result)
+    return "\n".join(lines + ([""] + notes if notes else [])) + "\n"
 
 
 def plot_groups(result: Dict[str, object], path: str) -> str:
@@ -139,7 +163,8 @@ def plot_groups(result: Dict[str, object], path: str) -> str:
         ax.grid(axis="y", alpha=0.3)
     axes[0].legend(ncol=min(4, len(keys)), fontsize=8, loc="upper left")
     axes[-1].set_xticks(x)
-    axes[-1].set_xticklabels([f"{g}\n({res[keys[0]]['groups'][g]['n']})" for g in groups], fontsize=8)
+    n_of = {g: next(r["groups"][g]["n"] for r in res.values() if g in r["groups"]) for g in groups}
+    axes[-1].set_xticklabels([f"{g}\n({n_of[g]})" for g in groups], fontsize=8)
     git = result.get("git", {})
     fig.suptitle(f"BROAD, {len(result['trials'])} trials: mean RMSE per group (hatched: 6D, heading offset "
                  f"removed) — commit {git.get('commit')}{' + uncommitted changes' if git.get('uncommitted_changes') else ''}",

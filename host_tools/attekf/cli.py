@@ -16,6 +16,18 @@ from typing import List, NoReturn, Optional
 
 from . import __version__, commands
 
+# What each command needs beyond numpy, and the extra of the package that installs it
+# (pyproject.toml); checked before the command runs (attekf.extras).
+NEEDS = {
+    "sim": (("tqdm",), "tools"),
+    "eval": (("tqdm",), "tools"),
+    "run": (("tqdm",), "tools"),
+    "replay": (("tqdm", "can", "cantools"), "can"),
+    "record": (("tqdm", "can", "cantools"), "can"),
+    "bench": (("tqdm", "h5py"), "bench"),
+    "cv": (("tqdm", "h5py"), "bench"),
+}
+
 
 class UsageExit(SystemExit):
     """argparse's usage error (already printed): main() returns 2 for it."""
@@ -44,9 +56,11 @@ def build_parser() -> argparse.ArgumentParser:
         prog="attekf",
         description="Host tools for the attitude EKF: simulate recordings, run the C estimator "
         "over them, replay them onto a CAN bus, record the estimator's output, evaluate "
-        "against ground truth and benchmark.",
-        epilog="Exit status: 0 done, 1 a file or device could not be used, 2 usage error, "
-               "130 interrupted (docs/host_tools.md).",
+        "against ground truth and benchmark. Each command has its own --help. The Python API: "
+        "python -c 'import attekf; help(attekf)'.",
+        epilog="Extras: sim, eval, run need pip install 'attekf[tools]'; replay, record "
+               "'attekf[can]'; bench, cv 'attekf[bench]'. Exit status: 0 done, 1 a file or device "
+               "could not be used, 2 usage error (also: a missing extra), 130 interrupted.",
     )
     ap.add_argument("--version", action="version", version=f"attekf {__version__}")
     sub = ap.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
@@ -66,6 +80,16 @@ def _terminate(_sig, _frame):
     raise KeyboardInterrupt
 
 
+def _run(args) -> int:
+    from .extras import message, missing
+    modules, extra = NEEDS.get(args.command, ((), ""))
+    absent = missing(modules)
+    if absent:
+        from .errors import MissingExtra
+        raise MissingExtra(message(absent[0], f"attekf {args.command}", extra))
+    return args._run(args)
+
+
 def main(argv: Optional[List[str]] = None) -> int:
     """Runs one command; returns its exit status (--help and --version exit 0 through
     SystemExit, as argparse does)."""
@@ -82,7 +106,7 @@ def main(argv: Optional[List[str]] = None) -> int:
         # install their own handler while they listen or send
         old = signal.signal(signal.SIGTERM, _terminate)
     try:
-        return commands.run_command(args.command, lambda: args._run(args))
+        return commands.run_command(args.command, lambda: _run(args))
     finally:
         if old is not None:
             signal.signal(signal.SIGTERM, old)

@@ -73,3 +73,8 @@ class Interrupted(AttekfError):
     """Ctrl-C / SIGTERM, with what was left behind in the message: exit status 130."""
 
     exit_code = 130
+
+
+class MissingExtra(UsageError):
+    """A command or file format needs a Python package that is not installed; the message
+    names the extra of the attekf package that brings it (attekf.extras). Exit status 2."""

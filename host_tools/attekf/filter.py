@@ -9,129 +9,137 @@
     res = attekf.estimate(gyr, acc, mag, rate_hz=100.0)   # (N, 3) arrays, one C call
     res.quat, res.euler, res.sigma_euler
 
-Units and frames (those of the C estimator, firmware/att/att.h and att_defs.h):
+Units and frames (those of the C estimator):
   * inputs in the body frame: gyroscope rad/s, accelerometer m/s^2 (specific force, +9.81
     on the axis pointing up at rest), magnetometer uT (any unit used consistently with the
-    settings mag_range and mag_ref_norm), time steps s;
+    settings mag_range and mag_ref_norm), time steps s. A sensor mounted rotated in the body
+    gives Filter(mounting=R): R (3, 3) rotates sensor-frame vectors into the body frame;
   * the attitude rotates body-frame vectors into the earth frame ENU (x east, y north,
     z up): quaternion [w, x, y, z]; Euler angles roll, pitch, yaw in rad, ZYX
     (R = Rz(yaw) Ry(pitch) Rx(roll)), yaw 0 with the body x axis pointing east, positive
-    counter-clockwise seen from above;
+    counter-clockwise seen from above. Filter(frame="NED") gives the same attitude from NED
+    (x north, y east, z down): R_ned = T R_enu with T = [[0 1 0], [1 0 0], [0 0 -1]], so a
+    body whose z axis points up reads roll 180 deg; a body frame x forward, y right, z down
+    reads roll = pitch = 0 when level;
   * sigmas: 1-sigma uncertainty of roll, pitch, yaw in rad (square roots of the diagonal of
-    the filter's covariance).
+    the filter's reported attitude covariance, Estimate.covariance).
 
-Settings are given by name (attekf.setting_info() lists every one with its unit, default
-and meaning); the C library checks them and an error names the setting at fault.
+Settings are given by name, or as a TOML or JSON file (attekf.load_settings);
+attekf.setting_info() lists every one with its unit, range, default and meaning; the C
+library checks them and an error names the setting at fault.
+
 The first align_samples samples (default 10) align the filter: roll and pitch from the
-averaged accelerometer, heading from the magnetometer; until then Flag.ALIGNED is clear.
+averaged accelerometer, heading from the magnetometer. Until then Flag.ALIGNED is clear and
+there is no estimate: quaternion and angles are NaN, sigmas infinite.
+
+A Filter can be copied (copy.copy, copy.deepcopy: independent filters), pickled, and saved
+and restored with get_state() / set_state(): the C filter's memory bit for bit, refused with
+a clear error by a filter of another scalar build or another version.
 """
 
 from __future__ import annotations
 
-from typing import Mapping, NamedTuple, Optional, Sequence, Union
+import os
+import zlib
+from typing import Mapping, Optional, Sequence, Union
 
 import numpy as np
 
 from . import native
-from .native import Flag, NativeError, Result, SettingsError
+from .native import NativeError, SettingsError
+from .results import Estimate, Flag, Result
+from .settings_file import load_settings
 
-__all__ = ["Filter", "Estimate", "estimate", "default_settings", "setting_info", "Flag",
-           "Result", "SettingsError", "NativeError"]
+__all__ = ["Filter", "Estimate", "estimate", "default_settings", "setting_info", "load_settings",
+           "Flag", "Result", "SettingsError", "NativeError"]
 
 ArrayLike3 = Union[Sequence[float], np.ndarray]
-Settings = Mapping[str, Union[float, int]]
+Settings = Union[Mapping[str, Union[float, int]], str, "os.PathLike[str]"]
+
+STATE_FORMAT = "attekf.Filter state"
+STATE_VERSION = 1
+FRAMES = ("ENU", "NED")
 
 
-class Estimate(NamedTuple):
-    """The filter's output after one sample (Filter.update).
-
-    quaternion  (4,) [w, x, y, z], unit quaternion rotating body-frame vectors into ENU
-    euler       (3,) rad: roll, pitch, yaw (ZYX, body to ENU; yaw 0 = body x east)
-    sigma       (3,) rad: 1-sigma uncertainty of roll, pitch, yaw
-    rate        (3,) rad/s: estimated body rates p, q, r (gyroscope offset removed)
-    flags       Flag bits after the sample (Flag.ALIGNED, Flag.MAG_DISTURBED, ...)
-    status      att_step's status: "EKF_OK"; "EKF_GATED" / "EKF_SKIPPED" (the sample was
-                applied, a measurement was not fused); any "EKF_ERR_*" means the sample was
-                refused (bad input, e.g. NaN or a time step above dt_max) and the filter is
-                exactly as before it, except its rejection counter (Filter.diag)
-    """
-
-    quaternion: np.ndarray
-    euler: np.ndarray
-    sigma: np.ndarray
-    rate: np.ndarray
-    flags: Flag
-    status: str
-
-    @property
-    def aligned(self) -> bool:
-        """The filter has its initial attitude (before that the outputs are not an estimate)."""
-        return bool(self.flags & Flag.ALIGNED)
-
-    @property
-    def euler_deg(self) -> np.ndarray:
-        """(3,) roll, pitch, yaw in degrees."""
-        return np.degrees(self.euler)
-
-    @property
-    def refused(self) -> bool:
-        """att_step refused the sample (status EKF_ERR_*, the filter unchanged)."""
-        return self.status.startswith("EKF_ERR")
+def _settings_dict(settings) -> dict:
+    if settings is None:
+        return {}
+    if isinstance(settings, (str, os.PathLike)):
+        return load_settings(settings)
+    if not isinstance(settings, Mapping):
+        raise TypeError(f"settings: expected a mapping name -> value or a file name, "
+                        f"not {type(settings).__name__}")
+    return dict(settings)
 
 
-def _put3(dst: np.ndarray, name: str, unit: str, v) -> None:
-    """dst[:] = v for three numbers v (list, tuple or array), else an error naming the argument."""
+def _check_dt(dt) -> Optional[float]:
+    if dt is None:
+        return None
     try:
-        n = len(v)
-    except TypeError:
-        raise TypeError(f"{name}: {v!r} is not three numbers ({unit})") from None
-    if n != 3:
-        raise ValueError(f"{name}: expected three numbers ({unit}), got {n}")
-    try:
-        dst[:] = v
+        v = float(dt)
     except (TypeError, ValueError):
-        raise TypeError(f"{name}: {v!r} is not three numbers ({unit})") from None
+        raise TypeError(f"dt: {dt!r} is not a number (s)") from None
+    if not (np.isfinite(v) and v > 0):
+        raise ValueError(f"dt: {dt!r} is not a positive, finite time step (s)")
+    return v
+
+
+def _check_frame(frame) -> str:
+    name = str(frame).upper()
+    if name not in FRAMES:
+        raise ValueError(f"frame: {frame!r} is not one of {', '.join(FRAMES)}")
+    return name
+
+
+def _check_mounting(mounting) -> Optional[np.ndarray]:
+    """A 3x3 rotation matrix (sensor -> body), or None."""
+    if mounting is None:
+        return None
+    try:
+        m = np.array(mounting, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError("mounting: not a 3x3 matrix of numbers") from None
+    if m.shape != (3, 3) or not np.isfinite(m).all():
+        raise ValueError(f"mounting: expected a finite 3x3 rotation matrix, got shape {m.shape}")
+    if np.abs(m @ m.T - np.eye(3)).max() > 1e-6 or np.linalg.det(m) < 0:
+        raise ValueError("mounting: not a rotation matrix (R R^T = I and det R = +1, to 1e-6)")
+    return m
 
 
 class Filter:
-    """The 9-state attitude EKF (firmware/att), fed sample by sample or in batches.
+    """The 9-state attitude EKF (the C library), fed sample by sample or in batches.
 
-    Filter(settings=None, scalar="float", dt=None)
-      settings  {name: value} changed from the defaults (units: attekf.setting_info());
-                checked by the C library: an unknown name or a value out of range raises
-                SettingsError naming the setting
+    Filter(settings=None, scalar="float", dt=None, *, frame="ENU", mounting=None)
+      settings  {name: value} changed from the defaults (units: attekf.setting_info()), or
+                the name of a TOML or JSON file of them (attekf.load_settings); checked by
+                the C library: an unknown name or a value out of range raises SettingsError
+                naming the setting
       scalar    the C build: "float" (what runs on the microcontroller), "double" (the
-                reference) or "fixed" (Q-format fixed point, docs/fixed_point.md)
+                reference) or "fixed" (Q-format fixed point)
       dt        s, default time step of update() when it is called without one (a fixed
                 sample rate, like VQF's Ts)
+      frame     "ENU" (the filter's own) or "NED": the earth frame of the outputs
+      mounting  (3, 3) rotation matrix sensor -> body applied to every input (None: the
+                sensor frame is the body frame)
 
     update(gyr, acc, mag=None, dt=...) -> Estimate     one sample
     update_batch(gyr, acc, mag=None, *, t= | rate_hz= | dt=) -> Result   N samples, one C call
     Both continue from the filter's state; reset() starts again from "not aligned".
+    get_state() / set_state(state), copy.copy, copy.deepcopy and pickle keep everything.
     """
 
     def __init__(self, settings: Optional[Settings] = None, scalar: str = "float",
-                 dt: Optional[float] = None):
-        if settings is not None and not isinstance(settings, Mapping):
-            raise TypeError(f"settings: expected a mapping name -> value, not {type(settings).__name__}")
+                 dt: Optional[float] = None, *, frame: str = "ENU", mounting=None):
+        changes = _settings_dict(settings)
         self._lib = native.load(scalar)
-        self._sbuf = native._make_settings(self._lib, dict(settings or {}))
-        self._fbuf = native._new_filter(self._lib, self._sbuf)
-        self._dt = None if dt is None else float(dt)
+        self._core = self._lib.new_core(self._lib.make_settings(changes))
+        self._configure(_check_dt(dt), _check_frame(frame), _check_mounting(mounting))
         self._t_last: Optional[float] = None
-        # one-sample buffers, allocated once (update() is called per sample)
-        self._in = np.zeros((4, 3), np.float64)          # rows: dt (col 0), gyr, acc, mag
-        self._state = np.zeros(native.N_STATES, np.float64)
-        self._var = np.zeros(native.N_STATES, np.float64)
-        self._quat = np.zeros(4, np.float64)
-        self._flags = np.zeros(1, np.uint32)
-        self._status = np.zeros(len(native.STATUS_COLUMNS), np.uint8)
-        dp, u32p, u8p = native._dp, native._u32p, native._u8p
-        self._p_in = [self._in[k].ctypes.data_as(dp) for k in range(4)]
-        self._p_out = (self._state.ctypes.data_as(dp), self._var.ctypes.data_as(dp),
-                       self._quat.ctypes.data_as(dp), self._flags.ctypes.data_as(u32p),
-                       self._status.ctypes.data_as(u8p))
-        self._status_names: dict = {}
+
+    def _configure(self, dt: Optional[float], frame: str, mounting: Optional[np.ndarray]) -> None:
+        self._dt, self._frame, self._mounting = dt, frame, mounting
+        mount = None if mounting is None else tuple(float(v) for v in mounting.ravel())
+        self._core.configure(dt or 0.0, mount, frame == "NED")
 
     # ---- properties ---------------------------------------------------------------------
     @property
@@ -140,106 +148,184 @@ class Filter:
         return self._lib.scalar
 
     @property
+    def dt(self) -> Optional[float]:
+        """The default time step of update(), s (None: every call gives one)."""
+        return self._dt
+
+    @property
+    def frame(self) -> str:
+        """The earth frame of the outputs: "ENU" or "NED"."""
+        return self._frame
+
+    @property
+    def mounting(self) -> Optional[np.ndarray]:
+        """The sensor -> body rotation applied to the inputs (a copy), or None."""
+        return None if self._mounting is None else self._mounting.copy()
+
+    @property
     def settings(self) -> dict:
         """Every setting in use, by name (values as the C build stores them)."""
-        return native._settings_to_dict(self._lib, self._sbuf)
+        return self._lib.settings_dict(self._core.settings())
 
     @property
     def diag(self) -> dict:
         """The filter's counters (att_diag_t), by name: steps, samples fused / gated /
         skipped per sensor, rejected (refused input), numeric, remaps, cov_repairs,
         heading_resets, gyro_saturated."""
-        return self._lib.diag(self._fbuf)
+        return dict(zip(self._lib.diag_names, self._core.diag()))
 
     @property
     def diag_values(self) -> dict:
         """The other diagnostics of att_diag_t: innovation test ratios (gyro_ratio,
         accel_ratio per axis, mag_ratio; > 1 means gated), accel_norm_error m/s^2,
         mag_norm_error (fraction), mag_dip_error rad; of the last sample of each sensor."""
-        return self._lib.diag_values(self._fbuf)
+        return native._diag_values(self._lib, self._core)
 
     # ---- running ------------------------------------------------------------------------
     def reset(self) -> None:
         """Back to "not aligned" with the same settings (diagnostics cleared)."""
-        self._fbuf = native._new_filter(self._lib, self._sbuf)
+        self._core.reset()
         self._t_last = None
 
     def update(self, gyr: ArrayLike3, acc: ArrayLike3, mag: Optional[ArrayLike3] = None,
                dt: Optional[float] = None) -> Estimate:
         """One IMU sample: gyr (3,) rad/s, acc (3,) m/s^2, mag (3,) uT or None (no
-        magnetometer sample), dt s since the previous sample (default: the Filter's dt).
-        Returns the Estimate after the sample (att_step: gyro update, predict over dt,
-        accelerometer and magnetometer updates)."""
-        if dt is None:
-            if self._dt is None:
-                raise ValueError("dt: give the time step in s (update(..., dt=0.01)) or "
-                                 "Filter(dt=...) for a fixed sample rate")
-            dt = self._dt
-        try:
-            self._in[0, 0] = float(dt)
-        except (TypeError, ValueError):
-            raise TypeError(f"dt: {dt!r} is not a number (s)") from None
-        _put3(self._in[1], "gyr", "rad/s", gyr)
-        _put3(self._in[2], "acc", "m/s^2", acc)
-        p_mag = None
-        if mag is not None:
-            _put3(self._in[3], "mag", "uT", mag)
-            p_mag = self._p_in[3]
-        rc = self._lib.lib.attekf_run(self._fbuf, 1, self._p_in[0], self._p_in[1], self._p_in[2],
-                                      p_mag, *self._p_out)
-        if rc != 0:
-            raise NativeError(f"attekf_run: {self._lib.status_name(rc)}")
+        magnetometer sample; three NaN mean the same), dt s since the previous sample
+        (default: the Filter's dt; a positive finite number, else ValueError). Returns the
+        Estimate after the sample (att_step: gyro update, predict over dt, accelerometer and
+        magnetometer updates)."""
         self._t_last = None
-        code = int(self._status[0])
-        status = self._status_names.get(code)
-        if status is None:
-            status = self._status_names[code] = self._lib.status_name(code)
-        return Estimate(quaternion=self._quat.copy(), euler=self._state[3:6].copy(),
-                        sigma=np.sqrt(self._var[3:6]), rate=self._state[0:3].copy(),
-                        flags=Flag(int(self._flags[0])), status=status)
+        return self._core.update(gyr, acc, mag, dt)
 
     def update_batch(self, gyr: np.ndarray, acc: np.ndarray, mag: Optional[np.ndarray] = None, *,
                      t: Optional[np.ndarray] = None, rate_hz: Optional[float] = None,
-                     dt: Union[None, float, np.ndarray] = None) -> Result:
+                     dt: Union[None, float, np.ndarray] = None, progress=None) -> Result:
         """N samples in one C call: gyr, acc (N, 3) rad/s, m/s^2; mag (N, 3) uT or None (a
         row of three NaN: no magnetometer sample at that time). Time from exactly one of
         t (N,) timestamps s, rate_hz (Hz) or dt (s, one value or (N,)); without any, the
-        Filter's dt. Returns a Result with one row per sample (quat, euler, sigma_euler,
-        rate, flags, status, ... : help(attekf.Result))."""
-        gyr = np.asarray(gyr, dtype=np.float64)
-        if gyr.ndim != 2 or gyr.shape[1] != 3:
-            raise ValueError(f"gyr: shape {gyr.shape}, expected (N, 3)")
+        Filter's dt. Steps must be positive and finite (timestamps strictly increasing).
+        Returns a Result with one row per sample (quat, euler, sigma_euler, cov_euler, rate,
+        gyro_bias, flags, status, ... : help(attekf.Result)). progress(k), if given, is
+        called after each block of samples with their number (blocks of 20000 C steps: the
+        same filter, the same results)."""
+        gyr = native.rows3("gyr", gyr, "rad/s")
         n = gyr.shape[0]
-        gyr = native._arr3("gyr", gyr, n)
-        acc = native._arr3("acc", acc, n)
-        mag = None if mag is None else native._arr3("mag", mag, n)
+        acc = native.rows3("acc", acc, "m/s^2", n)
+        mag = None if mag is None else native.rows3("mag", mag, "uT", n)
         if t is None and rate_hz is None and dt is None:
             if self._dt is None:
                 raise ValueError("give t (timestamps, s), rate_hz (Hz) or dt (s), or Filter(dt=...)")
             dt = self._dt
-        steps = native.time_steps(n, t=t, rate_hz=rate_hz, dt=dt, t_prev=self._t_last)
+        steps = native.time_steps(n, t=t, rate_hz=rate_hz, dt=dt, t_prev=self._t_last, first=self._dt)
         if t is not None:
             times = np.ascontiguousarray(t, dtype=np.float64)
         elif rate_hz is not None:
             times = np.arange(n) / float(rate_hz)
         else:
             times = np.concatenate(([0.0], np.cumsum(steps[1:]))) if n else np.zeros(0)
-        res = native._run(self._lib, self._fbuf, self._sbuf, times, steps, gyr, acc, mag)
-        self._t_last = float(times[-1]) if (t is not None and n) else None
+        return self._run(times, steps, gyr, acc, mag, t is not None, progress)
+
+    def run_recording(self, rec, use_mag: bool = True, progress=None) -> Result:
+        """update_batch over a recording read by attekf.io.read_recording (its timestamps;
+        use_mag=False: as if it had no magnetometer). progress(k) as in update_batch."""
+        n = len(rec.t)
+        gyr = native.rows3("gyr", rec.gyr, "rad/s", n, layout_known=True)
+        acc = native.rows3("acc", rec.acc, "m/s^2", n, layout_known=True)
+        mag = native.rows3("mag", rec.mag, "uT", n, layout_known=True) if use_mag and rec.mag is not None else None
+        steps = native.time_steps(n, t=rec.t, t_prev=self._t_last, first=self._dt or (1.0 if n == 1 else None))
+        return self._run(np.ascontiguousarray(rec.t, dtype=np.float64), steps, gyr, acc, mag, True, progress)
+
+    def _run(self, times, steps, gyr, acc, mag, timestamps: bool, progress) -> Result:
+        res = native.run_core(self._lib, self._core, times, steps, gyr, acc, mag, progress, self._frame)
+        self._t_last = float(times[-1]) if (timestamps and len(times)) else None
         return res
+
+    # ---- state --------------------------------------------------------------------------
+    def get_state(self) -> dict:
+        """Everything this filter is, to restore it later with set_state() (a dict of plain
+        values, picklable): the C filter's memory (att_ekf_t: settings, state, covariance,
+        counters) as bytes, tagged with the scalar build and the layout of this version of
+        the library, and the Python-side options (dt, frame, mounting)."""
+        data = self._core.state_bytes()
+        return {"format": STATE_FORMAT, "version": STATE_VERSION, "scalar": self.scalar,
+                "layout": self._lib.layout, "c_state": data, "crc32": zlib.crc32(data),
+                "dt": self._dt, "frame": self._frame,
+                "mounting": None if self._mounting is None else self._mounting.tolist(),
+                "t_last": self._t_last}
+
+    def set_state(self, state: dict) -> None:
+        """Makes this filter exactly the one get_state() saved. ValueError (this filter
+        unchanged) for anything else: not such a state, another scalar build, another
+        version of the library, or damaged bytes."""
+        if not isinstance(state, Mapping) or state.get("format") != STATE_FORMAT:
+            raise ValueError("state: not a state saved by attekf.Filter.get_state()")
+        if state.get("version") != STATE_VERSION:
+            raise ValueError(f"state: format version {state.get('version')!r}, this attekf reads "
+                             f"version {STATE_VERSION}")
+        if state.get("scalar") != self.scalar:
+            raise ValueError(f"state: saved by a {state.get('scalar')!r} filter, this one is "
+                             f"{self.scalar!r} (use Filter(scalar={state.get('scalar')!r}))")
+        if state.get("layout") != self._lib.layout:
+            raise ValueError(f"state: saved by another version of the estimator (layout "
+                             f"{state.get('layout')!r}, this one {self._lib.layout!r}): its memory "
+                             "cannot be read by this one")
+        data = state.get("c_state")
+        if not isinstance(data, (bytes, bytearray)) or zlib.crc32(data) != state.get("crc32"):
+            raise ValueError("state: the filter's bytes are damaged (checksum mismatch)")
+        options = (_check_dt(state.get("dt")), _check_frame(state.get("frame")),
+                   _check_mounting(state.get("mounting")))
+        t_last = state.get("t_last")
+        self._core.load_state(bytes(data))   # ValueError if the C library refuses them
+        self._configure(*options)
+        self._t_last = None if t_last is None else float(t_last)
+
+    def __copy__(self) -> "Filter":
+        new = Filter.__new__(Filter)
+        new._lib, new._core = self._lib, self._core.copy()
+        new._dt, new._frame, new._mounting, new._t_last = self._dt, self._frame, self.mounting, self._t_last
+        return new
+
+    def __deepcopy__(self, memo) -> "Filter":
+        return self.__copy__()   # nothing is shared: the C filter is copied, the rest immutable
+
+    def __reduce__(self):
+        return (_filter_from_state, (self.get_state(),))
+
+    def __repr__(self) -> str:
+        mounting = "None" if self._mounting is None else self._mounting.tolist()
+        return (f"<attekf.Filter scalar={self.scalar!r} dt={self._dt!r} frame={self._frame!r} "
+                f"mounting={mounting}>")
+
+
+def _filter_from_state(state: dict) -> Filter:
+    """Unpickling: a Filter of the state's scalar build, set to the state."""
+    f = Filter(scalar=state.get("scalar", "float") if isinstance(state, Mapping) else "float")
+    f.set_state(state)
+    return f
 
 
 def estimate(gyr: np.ndarray, acc: np.ndarray, mag: Optional[np.ndarray] = None, *,
              t: Optional[np.ndarray] = None, rate_hz: Optional[float] = None,
              dt: Union[None, float, np.ndarray] = None, settings: Optional[Settings] = None,
-             scalar: str = "float") -> Result:
-    """The estimator over whole arrays in one C call: Filter(settings, scalar).update_batch.
+             scalar: str = "float", frame: str = "ENU", mounting=None, with_6d: bool = False) -> Result:
+    """The estimator over whole arrays in one C call: Filter(settings, scalar, frame=...,
+    mounting=...).update_batch.
 
     gyr, acc (N, 3) rad/s and m/s^2, mag (N, 3) uT or None; time from exactly one of
     t (N,) timestamps s, rate_hz (Hz) or dt (s). Returns a Result (help(attekf.Result)):
-    quat (N, 4), euler (N, 3) rad, sigma_euler (N, 3) rad, rate (N, 3) rad/s, flags,
-    status per sample, diag counters after the last sample."""
-    return Filter(settings, scalar).update_batch(gyr, acc, mag, t=t, rate_hz=rate_hz, dt=dt)
+    quat (N, 4), euler (N, 3) rad, sigma_euler (N, 3) rad, cov_euler (N, 3, 3) rad^2, rate
+    (N, 3) rad/s, gyro_bias (N, 3) rad/s, flags, status per sample, diag counters after the
+    last sample. with_6d=True also runs the samples without the magnetometer (a second
+    filter, the same settings): its Result is res.six_d, so one call gives 9D and 6D."""
+    def run(m):
+        return Filter(settings, scalar, frame=frame, mounting=mounting).update_batch(
+            gyr, acc, m, t=t, rate_hz=rate_hz, dt=dt)
+    if with_6d and mag is None:
+        raise ValueError("with_6d: without a magnetometer (mag=None) the result is 6D already")
+    res = run(mag)
+    if with_6d:
+        res.six_d = run(None)
+    return res
 
 
 def default_settings(scalar: str = "float") -> dict:
@@ -248,5 +334,6 @@ def default_settings(scalar: str = "float") -> dict:
 
 
 def setting_info(scalar: str = "float") -> dict:
-    """name -> {"default", "unit", "help"} for every setting of the C library."""
+    """name -> {"default", "unit", "help", "range" (lo, hi), "live"} for every setting of the
+    C library ("live": may change while the filter runs)."""
     return native.setting_info(scalar)

@@ -23,7 +23,7 @@ import json
 import math
 import os
 from dataclasses import dataclass, field
-from typing import Callable, Dict, List, Optional
+from typing import Callable, Dict, List, Optional, Sequence
 
 import numpy as np
 
@@ -152,30 +152,12 @@ class EstimatorOutput:
 # Reading recordings
 # ---------------------------------------------------------------------------------------------
 def read_settings_json(path: str) -> Dict[str, float]:
-    """A JSON object {setting name: number} from a file (estimator settings for the
-    commands' --settings); InputError naming the file and the line or the setting otherwise.
-    Whether the names and values are ones the filter accepts is the C library's to say."""
-    from .csvtext import read_text_lines
-    if os.path.isdir(path):
-        raise InputError(f"{path}: is a directory, expected a JSON file")
-    text = "\n".join(read_text_lines(path))
-    try:
-        data = json.loads(text, parse_constant=lambda c: float("nan"))
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{path}: line {exc.lineno}: invalid JSON: {exc.msg}") from None
-    except RecursionError:
-        raise InputError(f"{path}: invalid JSON: nested too deeply") from None
-    if not isinstance(data, dict):
-        raise InputError(f"{path}: expected a JSON object {{name: value}}, "
-                         f"got {type(data).__name__}")
-    out: Dict[str, float] = {}
-    for name, value in data.items():
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise InputError(f"{path}: setting '{name}': {json.dumps(value)[:40]} is not a number")
-        if not math.isfinite(float(value)):
-            raise InputError(f"{path}: setting '{name}': {value} is not a finite number")
-        out[str(name)] = float(value) if isinstance(value, float) else int(value)
-    return out
+    """Estimator settings {name: number} from a JSON or TOML file (the commands' --settings;
+    attekf.settings_file.load_settings); InputError naming the file and the line or the
+    setting otherwise. Whether the names and values are ones the filter accepts is the C
+    library's to say."""
+    from .settings_file import load_settings
+    return load_settings(path)
 
 
 def read_recording(path: str, check_units: bool = True,
@@ -268,6 +250,8 @@ def _comment_lines(meta: Dict[str, object]) -> List[str]:
 
 
 def _h5():
+    from .extras import require
+    require("h5py", "HDF5 files")
     import h5py  # imported lazily: only HDF5 users pay for it
     return h5py
 
@@ -513,9 +497,15 @@ def write_recording(path: str, rec: Recording, progress: Optional[Callable[[int]
 # ---------------------------------------------------------------------------------------------
 def write_output_csv(path: str, t: np.ndarray, euler: np.ndarray, var: Optional[np.ndarray] = None,
                      flags: Optional[np.ndarray] = None, status: Optional[np.ndarray] = None,
-                     extra: Optional[Dict[str, np.ndarray]] = None) -> None:
+                     extra: Optional[Dict[str, np.ndarray]] = None,
+                     progress: Optional[Callable[[int], None]] = None,
+                     order: Optional[List[str]] = None, full_precision: Sequence[str] = ()) -> None:
     """Estimator output: t_s, roll_rad, pitch_rad, yaw_rad, [var_roll_rad2, var_pitch_rad2,
-    var_yaw_rad2], [flags], [status], [extra columns]. NaN (no estimate) is an empty cell."""
+    var_yaw_rad2], [flags], [status], [extra columns], or the columns in `order` (every
+    column once). NaN (no estimate) is an empty cell; no value may be infinite. Values have
+    10 significant digits, t_s and the extra columns named in full_precision 17 (every digit
+    of a double: epoch times keep their fraction). progress(k): called with the number of
+    rows just written."""
     n = t.shape[0]
     euler = np.asarray(euler, dtype=np.float64)
     if euler.shape != (n, 3):
@@ -544,18 +534,25 @@ def write_output_csv(path: str, t: np.ndarray, euler: np.ndarray, var: Optional[
             raise ValueError(f"{name}: shape {a.shape}, expected ({n},)")
         header.append(name)
         cols.append(a)
-        kinds.append("i" if np.issubdtype(a.dtype, np.integer) else "f")
+        kinds.append("i" if np.issubdtype(a.dtype, np.integer) else "t" if name in full_precision else "f")
+    if order is not None:
+        if sorted(order) != sorted(header):
+            raise ValueError(f"order: {order} is not a permutation of the columns {header}")
+        at = [header.index(c) for c in order]
+        header, cols, kinds = order, [cols[k] for k in at], [kinds[k] for k in at]
+    for name, a, kind in zip(header, cols, kinds):
+        if kind != "i" and np.isinf(a).any():
+            raise ValueError(f"{name}: infinite value at row {int(np.argmax(np.isinf(a)))} (NaN = no value)")
+    # one format per row ("%.17g" time, "%.10g" floats, "%d" integers); NaN is an empty cell
+    # (no number's text contains "nan")
+    row = ",".join({"t": "%.17g", "f": "%.10g", "i": "%d"}[k] for k in kinds)
+    values = [a.tolist() if k != "i" else np.asarray(a, np.int64).tolist() for a, k in zip(cols, kinds)]
     with atomic_path(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as fh:
         fh.write(",".join(header) + "\n")
-        for i in range(n):
-            cells = []
-            for a, kind in zip(cols, kinds):
-                v = a[i]
-                if kind == "i":
-                    cells.append(str(int(v)))
-                else:
-                    cells.append(_fmt(float(v), 17 if kind == "t" else 10))
-            fh.write(",".join(cells) + "\n")
+        for k, cells in enumerate(zip(*values)):
+            if progress is not None and k % PROGRESS_ROWS == PROGRESS_ROWS - 1:
+                progress(PROGRESS_ROWS)
+            fh.write((row % cells).replace("nan", "") + "\n")
 
 
 def read_output_csv(path: str) -> EstimatorOutput:

@@ -1,4 +1,4 @@
-"""The C estimator from Python (ctypes over host_tools/native/attekf_native.c).
+"""The C estimator from Python: the extension modules of host_tools/native (CPython C API).
 
     from attekf.native import run_estimator, default_settings
     res = run_estimator(recording, {"accel_noise": 0.3}, scalar="float")
@@ -7,75 +7,49 @@
 The very same C code as on the target (firmware/att, att_step) runs over a whole recording
 in one C call (in blocks only when a progress callback asks for it). Settings are set by
 name through the C library's own table, so nothing here mirrors a C struct. The stateful
-API for users (attekf.Filter, attekf.estimate) is in attekf/filter.py.
+API for users (attekf.Filter, attekf.estimate) is in attekf/filter.py; the result types
+(Flag, Estimate, Result) in attekf/results.py.
 
-Where the libraries (libattekf_native_{f,d,x}.so) are found, first match:
-  1. ATTEKF_LIB: a directory holding them, or the path of one library file (it then serves
-     the scalar type it was built with);
-  2. the installed package (attekf/_native/, built by pip through host_tools/CMakeLists.txt);
+Where the modules (_core_f, _core_d, _core_x with the interpreter's suffix, e.g.
+_core_f.cpython-311-x86_64-linux-gnu.so) are found, first match:
+  1. ATTEKF_LIB: a directory holding them, or the path of one module file (it then serves
+     the scalar type it was built for);
+  2. the installed package (attekf/, built by pip through host_tools/CMakeLists.txt);
   3. the source tree's build (build/host/host_tools/native/, scripts/setup.sh builds it;
      what an editable install uses).
 """
 
 from __future__ import annotations
 
-import ctypes
-import enum
+import importlib.machinery
+import importlib.util
 import os
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Dict, List, Optional, Union
 
 import numpy as np
 
-from .io import Recording
+from .results import ATT_FLAGS, Estimate, Flag, Result, STATE_NAMES  # noqa: F401 (re-exported)
 
-API_VERSION = 2
+API_VERSION = 3
 SCALARS = {"float": "f", "double": "d", "fixed": "x"}  # fixed: Q-format (docs/fixed_point.md)
+N_STATES = len(STATE_NAMES)
 
-# Columns of the per-sample status array (attekf_native.h, ATTEKF_STATUS_*).
-STATUS_COLUMNS = ("step", "predict", "gyro", "accel", "mag")
-N_STATES = 9
-STATE_NAMES = ("p", "q", "r", "phi", "theta", "psi", "phid", "thetad", "psid")
-
-# ekf_status_t values the summary needs (firmware/ekf/ekf.h).
+# ekf_status_t values the summary needs (firmware/ekf/ekf.h; checked by the tests).
 EKF_OK = 0
 EKF_ERR_NOT_INITIALISED = 6
+EKF_ERR_SETTINGS = 7
 EKF_GATED = 11
 EKF_SKIPPED = 12
 
-
-class Flag(enum.IntFlag):
-    """Status flags of the filter (ATT_FLAG_* of firmware/att/att.h). "last" means the most
-    recent sample of that sensor."""
-
-    ALIGNED = 1 << 0            #: initial attitude set
-    GIMBAL_LOCK = 1 << 1        #: |pitch| > gimbal_limit: kinematics clamped, heading held
-    ACCEL_DEWEIGHTED = 1 << 2   #: last accel: linear acceleration, noise variance >= doubled
-    ACCEL_REJECTED = 1 << 3     #: last accel: | |a| - g | beyond accel_reject, not fused
-    MAG_DISTURBED = 1 << 4      #: last mag: norm or dip off the reference, not fused
-    HEADING_HELD = 1 << 5       #: last mag: not fused because of gimbal lock
-    GYRO_GATED = 1 << 6         #: last gyro: at least one axis gated
-    ACCEL_GATED = 1 << 7        #: last accel: at least one axis gated
-    MAG_GATED = 1 << 8          #: last mag: gated
-    GATE_BYPASS = 1 << 9        #: a gate is bypassed after gate_timeout
-    HEADING_LIMITED = 1 << 10   #: heading variance at heading_var_max
-    REMAPPED = 1 << 11          #: last predict: pitch passed +-90 deg, remapped
-    COV_REPAIRED = 1 << 12      #: last call: P was loaded to stay positive definite
-    AT_REST = 1 << 13           #: last sample: at rest, gyroscope offset learned
-
-
-# ATT_FLAG_* by name, for readers of Result.flags.
-ATT_FLAGS = {f.name: int(f) for f in Flag}
-
-BLOCK = 20000  # samples per C call (progress granularity; ~10 ms of work)
+BLOCK = 20000  # samples per C call when a progress callback is given (~20 ms of work)
 
 _REPO = Path(__file__).resolve().parents[2]
 
 
 class NativeError(RuntimeError):
-    """The shared library is missing, of the wrong version, or refused the settings."""
+    """The extension module is missing, of the wrong version, or failed."""
 
 
 class SettingsError(ValueError):
@@ -85,160 +59,164 @@ class SettingsError(ValueError):
 # ---------------------------------------------------------------------------------------------
 # Loading
 # ---------------------------------------------------------------------------------------------
-def _packaged_dir() -> Path:
-    """Where a pip-installed package keeps its libraries (host_tools/CMakeLists.txt)."""
-    return Path(__file__).resolve().parent / "_native"
-
-
-def _build_dir() -> Path:
-    """The libraries of the source tree's build (scripts/setup.sh)."""
+def build_dir() -> Path:
+    """The source tree's build of the modules and of the attekf_vectors programs
+    (scripts/setup.sh)."""
     return _REPO / "build" / "host" / "host_tools" / "native"
 
 
-def library_dir() -> Path:
-    """Directory of the shared libraries (in the source tree's build, also of the
-    attekf_vectors programs): ATTEKF_LIB, else the installed package's, else the build's."""
+def _module_file(directory: Path, scalar: str) -> Optional[Path]:
+    for suffix in importlib.machinery.EXTENSION_SUFFIXES:
+        p = directory / f"_core_{SCALARS[scalar]}{suffix}"
+        if p.is_file():
+            return p
+    return None
+
+
+def module_path(scalar: str) -> Path:
+    """The extension module file of a scalar build (ATTEKF_LIB, the package, the build)."""
+    if scalar not in SCALARS:
+        raise ValueError(f"scalar must be one of {', '.join(SCALARS)}, not {scalar!r}")
+    expected = f"_core_{SCALARS[scalar]}{importlib.machinery.EXTENSION_SUFFIXES[0]}"
     env = os.environ.get("ATTEKF_LIB")
     if env:
         p = Path(env)
-        return p if p.is_dir() else p.parent
-    packaged = _packaged_dir()
-    if (packaged / "libattekf_native_f.so").exists():
-        return packaged
-    return _build_dir()
+        return (_module_file(p, scalar) or p / expected) if p.is_dir() else p
+    for directory in (Path(__file__).resolve().parent, build_dir()):
+        found = _module_file(directory, scalar)
+        if found is not None:
+            return found
+    return Path(__file__).resolve().parent / expected
 
 
-def _library_path(scalar: str) -> Path:
-    if scalar not in SCALARS:
-        raise ValueError(f"scalar must be one of {', '.join(SCALARS)}, not {scalar!r}")
-    env = os.environ.get("ATTEKF_LIB")
-    if env and not Path(env).is_dir():
-        return Path(env)
-    return library_dir() / f"libattekf_native_{SCALARS[scalar]}.so"
+def _not_built(path: Path) -> NativeError:
+    if (_REPO / "firmware" / "CMakeLists.txt").exists():   # a source checkout
+        how = "build it with scripts/setup.sh (or cmake --build build/host), "
+    else:
+        how = "reinstall the package (pip install --force-reinstall attekf), "
+    return NativeError(f"{path}: the estimator's extension module is not there: {how}or point "
+                       "ATTEKF_LIB at a directory holding _core_f / _core_d / _core_x")
 
 
-_u8p = ctypes.POINTER(ctypes.c_uint8)
-_u32p = ctypes.POINTER(ctypes.c_uint32)
-_dp = ctypes.POINTER(ctypes.c_double)
-
-
-class _Lib:
-    """One loaded library with its prototypes and its tables (settings, counters)."""
+class Library:
+    """One loaded extension module with its tables (settings, diagnostics, status names)."""
 
     def __init__(self, path: Path, scalar: str):
-        if not path.exists():
-            if (_REPO / "firmware" / "CMakeLists.txt").exists():  # a source checkout
-                how = (f"build it with scripts/setup.sh (or cmake -S {_REPO} -B {_REPO / 'build/host'} "
-                       f"-G Ninja && cmake --build {_REPO / 'build/host'}), ")
-            else:
-                how = "reinstall the package (pip install attekf builds the libraries), "
-            raise NativeError(
-                f"{path}: the estimator library is not built: {how}or point ATTEKF_LIB at a "
-                "directory holding libattekf_native_f.so / _d.so / _x.so.")
+        if not path.is_file():
+            raise _not_built(path)
+        name = "attekf." + path.name.split(".")[0]   # the module's own name (its PyInit_ function)
         try:
-            lib = ctypes.CDLL(str(path))
-        except OSError as exc:
+            spec = importlib.util.spec_from_file_location(name, path)
+            mod = importlib.util.module_from_spec(spec)
+            spec.loader.exec_module(mod)
+        except (ImportError, OSError) as exc:
             raise NativeError(f"{path}: cannot load: {exc}") from None
         self.path = path
-        self.lib = lib
-        c = ctypes
-        for name, res, args in (
-            ("attekf_api_version", c.c_int, []),
-            ("attekf_scalar_name", c.c_char_p, []),
-            ("attekf_settings_size", c.c_size_t, []),
-            ("attekf_filter_size", c.c_size_t, []),
-            ("attekf_settings_default", None, [c.c_void_p]),
-            ("attekf_setting_count", c.c_size_t, []),
-            ("attekf_setting_name", c.c_char_p, [c.c_size_t]),
-            ("attekf_setting_unit", c.c_char_p, [c.c_size_t]),
-            ("attekf_setting_help", c.c_char_p, [c.c_size_t]),
-            ("attekf_setting_type", c.c_int, [c.c_size_t]),
-            ("attekf_setting_set", c.c_int, [c.c_void_p, c.c_char_p, c.c_double]),
-            ("attekf_setting_get", c.c_int, [c.c_void_p, c.c_char_p, _dp]),
-            ("attekf_settings_table_complete", c.c_int, []),
-            ("attekf_settings_check", c.c_int, [c.c_void_p]),
-            ("attekf_filter_init", c.c_int, [c.c_void_p, c.c_void_p]),
-            ("attekf_status_name", c.c_char_p, [c.c_int]),
-            ("attekf_diag_count", c.c_size_t, []),
-            ("attekf_diag_name", c.c_char_p, [c.c_size_t]),
-            ("attekf_diag_get", None, [c.c_void_p, _u32p]),
-            ("attekf_diag_value_count", c.c_size_t, []),
-            ("attekf_diag_value_name", c.c_char_p, [c.c_size_t]),
-            ("attekf_diag_value_unit", c.c_char_p, [c.c_size_t]),
-            ("attekf_diag_value_len", c.c_size_t, [c.c_size_t]),
-            ("attekf_diag_values_get", None, [c.c_void_p, _dp]),
-            ("attekf_diag_table_complete", c.c_int, []),
-            ("attekf_run", c.c_int, [c.c_void_p, c.c_size_t, _dp, _dp, _dp, _dp,
-                                     _dp, _dp, _dp, _u32p, _u8p]),
-            ("attekf_run_cov", c.c_int, [c.c_void_p, c.c_size_t, _dp, _dp, _dp, _dp,
-                                         _dp, _dp, _dp, _u32p, _u8p, _dp]),
-        ):
-            try:
-                fn = getattr(lib, name)
-            except AttributeError:
-                raise NativeError(f"{path}: missing symbol {name} (stale build? rebuild)") from None
-            fn.restype = res
-            fn.argtypes = args
-        version = lib.attekf_api_version()
-        if version != API_VERSION:
-            raise NativeError(f"{path}: API version {version}, this package expects {API_VERSION}; rebuild")
-        built = lib.attekf_scalar_name().decode()
-        if built != scalar:
-            raise NativeError(f"{path}: built for scalar '{built}', asked for '{scalar}'")
+        self.module = mod
+        if getattr(mod, "API_VERSION", None) != API_VERSION:
+            raise NativeError(f"{path}: API version {getattr(mod, 'API_VERSION', '?')}, this package "
+                              f"expects {API_VERSION}; rebuild")
+        if mod.SCALAR != scalar:
+            raise NativeError(f"{path}: built for scalar '{mod.SCALAR}', asked for '{scalar}'")
+        if mod.ESTIMATE_FIELDS != Estimate._fields or mod.N_STATES != N_STATES:
+            raise NativeError(f"{path}: its Estimate fields or state size differ from this package's; rebuild")
         self.scalar = scalar
-        self.settings_size = int(lib.attekf_settings_size())
-        self.filter_size = int(lib.attekf_filter_size())
-        n = int(lib.attekf_setting_count())
-        self.setting_names: List[str] = [lib.attekf_setting_name(i).decode() for i in range(n)]
-        self.setting_units = {nm: lib.attekf_setting_unit(i).decode() for i, nm in enumerate(self.setting_names)}
-        self.setting_help = {nm: lib.attekf_setting_help(i).decode() for i, nm in enumerate(self.setting_names)}
-        self.setting_is_int = {nm: lib.attekf_setting_type(i) == 1 for i, nm in enumerate(self.setting_names)}
-        self.diag_names: List[str] = [lib.attekf_diag_name(i).decode() for i in range(int(lib.attekf_diag_count()))]
-        nv = int(lib.attekf_diag_value_count())
-        self.diag_value_names: List[str] = [lib.attekf_diag_value_name(i).decode() for i in range(nv)]
-        self.diag_value_units = {nm: lib.attekf_diag_value_unit(i).decode()
-                                 for i, nm in enumerate(self.diag_value_names)}
-        self.diag_value_lens = [int(lib.attekf_diag_value_len(i)) for i in range(nv)]
+        self.layout = mod.LAYOUT
+        self.state_size = int(mod.STATE_SIZE)
+        self.status_columns = tuple(mod.STATUS_COLUMNS)
+        table = mod.settings_table()
+        self.setting_names: List[str] = [row[0] for row in table]
+        self.setting_units = {row[0]: row[1] for row in table}
+        self.setting_help = {row[0]: row[2] for row in table}
+        self.setting_is_int = {row[0]: bool(row[3]) for row in table}
+        self.setting_range = {row[0]: (self._shown(row[4]), self._shown(row[5])) for row in table}
+        self.setting_live = {row[0]: bool(row[6]) for row in table}
+        self._index = {n: i for i, n in enumerate(self.setting_names)}
+        counters, values = mod.diag_tables()
+        self.diag_names: List[str] = list(counters)
+        self.diag_value_names: List[str] = [v[0] for v in values]
+        self.diag_value_units = {v[0]: v[1] for v in values}
+        self.diag_value_lens = [int(v[2]) for v in values]
+        names = []
+        while len(names) < 256 and mod.status_name(len(names)) != "EKF_STATUS_UNKNOWN":
+            names.append(mod.status_name(len(names)))
+        self.status_names = tuple(names)
 
-    # opaque, 8-byte aligned buffers of the C structs
-    def new_settings(self):
-        return (ctypes.c_double * ((self.settings_size + 7) // 8))()
-
-    def new_filter(self):
-        return (ctypes.c_double * ((self.filter_size + 7) // 8))()
+    def tables_complete(self) -> bool:
+        """The settings and diagnostics tables cover att_settings_t and att_diag_t."""
+        return all(self.module.tables_complete())
 
     def status_name(self, code: int) -> str:
-        return self.lib.attekf_status_name(int(code)).decode()
+        code = int(code)
+        return self.status_names[code] if 0 <= code < len(self.status_names) else self.module.status_name(code)
 
-    def diag(self, fbuf) -> Dict[str, int]:
-        """The counters of att_diag_t of a filter buffer, by name."""
-        counters = (ctypes.c_uint32 * len(self.diag_names))()
-        self.lib.attekf_diag_get(fbuf, counters)
-        return {name: int(v) for name, v in zip(self.diag_names, counters)}
+    def _shown(self, v: float) -> float:
+        """A value of the build as a short decimal: the float build's 0.001 (not
+        0.0010000000474974513), the others as they are."""
+        return float(str(np.float32(v))) if self.scalar == "float" else float(v)
 
-    def diag_values(self, fbuf) -> Dict[str, Union[float, tuple]]:
-        """The other diagnostics of att_diag_t (test ratios, norm and dip errors), by name:
-        a float, or a tuple for an array field."""
-        out = (ctypes.c_double * sum(self.diag_value_lens))()
-        self.lib.attekf_diag_values_get(fbuf, out)
-        values: Dict[str, Union[float, tuple]] = {}
-        k = 0
-        for name, n in zip(self.diag_value_names, self.diag_value_lens):
-            values[name] = float(out[k]) if n == 1 else tuple(float(v) for v in out[k:k + n])
-            k += n
-        return values
+    # ---- settings ----------------------------------------------------------------------
+    def settings_dict(self, s) -> Dict[str, Union[float, int]]:
+        """Every setting of a Settings object, by name (values as the C build stores them)."""
+        out: Dict[str, Union[float, int]] = {}
+        for i, name in enumerate(self.setting_names):
+            v = s.get(i)
+            out[name] = int(v) if self.setting_is_int[name] else self._shown(v)
+        return out
+
+    def make_settings(self, settings: Optional[Dict[str, float]] = None):
+        """A Settings object: the defaults with `settings` {name: value} changed, each checked
+        by the C library (att_setting_set: its own range; att_settings_check: the bounds
+        between settings). SettingsError names the setting at fault."""
+        s = self.module.Settings()
+        for name, value in (settings or {}).items():
+            i = self._index.get(str(name))
+            if i is None:
+                raise SettingsError(f"unknown setting '{name}' (known: {', '.join(self.setting_names)})")
+            try:
+                v = float(value)
+            except (TypeError, ValueError):
+                raise SettingsError(f"setting {name}: {value!r} is not a number") from None
+            largest = float(np.finfo(np.float32).max) if self.scalar == "float" else float("inf")
+            if not abs(v) <= largest:
+                raise SettingsError(f"setting {name}: {value!r} is not a finite {self.scalar}")
+            if s.set(i, v) != EKF_OK:
+                lo, hi = self.setting_range[name]
+                whole = "a whole number " if self.setting_is_int[name] else ""
+                raise SettingsError(f"setting {name}: {value!r} is not {whole}in [{lo:g}, {hi:g}] "
+                                    f"({self.setting_units[name]})")
+        st = s.check()
+        if st != EKF_OK:
+            changed = ", ".join(f"{k}={v!r}" for k, v in (settings or {}).items())
+            raise SettingsError(f"settings refused by att_settings_check ({self.status_name(st)}): "
+                                f"{changed}: settings that bound each other do not fit (accel_range >= "
+                                "gravity, heading_var_max >= var_floor, rest.bias_max and bias.sigma_init "
+                                "<= gyro_range), or a derived variance is not representable in the "
+                                f"{self.scalar} build; attekf.setting_info() gives every setting's range")
+        return s
+
+    def new_core(self, settings):
+        """A Core (one att_ekf_t, initialised with the Settings) ready for update()."""
+        core = self.module.Core(settings)
+        core.bind(Estimate, Flag, self.status_names)
+        return core
 
 
-_LIBS: Dict[str, _Lib] = {}
+_LIBS: Dict[str, Library] = {}
 
 
-def load(scalar: str = "float") -> _Lib:
-    """The library for a scalar type ("float", "double" or "fixed"), loaded once."""
-    path = _library_path(scalar)
+def load(scalar: str = "float") -> Library:
+    """The extension module for a scalar type ("float", "double" or "fixed"), loaded once."""
+    path = module_path(scalar)
     key = f"{scalar}:{path}"
     if key not in _LIBS:
-        _LIBS[key] = _Lib(path, scalar)
+        _LIBS[key] = Library(path, scalar)
     return _LIBS[key]
+
+
+def _make_settings(lib: Library, settings: Optional[Dict[str, float]]):
+    """lib.make_settings (the name the commands use)."""
+    return lib.make_settings(settings)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -247,250 +225,150 @@ def load(scalar: str = "float") -> _Lib:
 def default_settings(scalar: str = "float") -> Dict[str, Union[float, int]]:
     """att_default_settings by name (values as the C build stores them)."""
     lib = load(scalar)
-    buf = lib.new_settings()
-    lib.lib.attekf_settings_default(buf)
-    return _settings_to_dict(lib, buf)
+    return lib.settings_dict(lib.module.Settings())
 
 
 def setting_info(scalar: str = "float") -> Dict[str, Dict[str, object]]:
-    """name -> {'default', 'unit', 'help'} for every setting of the C library."""
+    """name -> {'default', 'unit', 'help', 'range' (lo, hi), 'live'} for every setting of the
+    C library (live: may change while the filter runs)."""
     lib = load(scalar)
     defaults = default_settings(scalar)
-    return {n: {"default": defaults[n], "unit": lib.setting_units[n], "help": lib.setting_help[n]}
+    return {n: {"default": defaults[n], "unit": lib.setting_units[n], "help": lib.setting_help[n],
+                "range": lib.setting_range[n], "live": lib.setting_live[n]}
             for n in lib.setting_names}
 
 
-def _settings_to_dict(lib: _Lib, buf) -> Dict[str, Union[float, int]]:
-    out: Dict[str, Union[float, int]] = {}
-    v = ctypes.c_double()
-    for name in lib.setting_names:
-        rc = lib.lib.attekf_setting_get(buf, name.encode(), ctypes.byref(v))
-        if rc != 0:
-            raise NativeError(f"attekf_setting_get({name}) failed ({rc})")
-        if lib.setting_is_int[name]:
-            out[name] = int(v.value)
-        elif lib.scalar == "float":
-            # the shortest decimal that reads back as the same float (0.001, not 0.0010000000474...)
-            out[name] = float(str(np.float32(v.value)))
-        else:
-            out[name] = float(v.value)
-    return out
-
-
-def _make_settings(lib: _Lib, settings: Optional[Dict[str, float]]):
-    buf = lib.new_settings()
-    lib.lib.attekf_settings_default(buf)
-    for name, value in (settings or {}).items():
-        try:
-            fvalue = float(value)
-        except (TypeError, ValueError):
-            raise SettingsError(f"setting {name}: {value!r} is not a number") from None
-        rc = lib.lib.attekf_setting_set(buf, str(name).encode(), fvalue)
-        if rc == -1:
-            raise SettingsError(f"unknown setting '{name}' (known: {', '.join(lib.setting_names)})")
-        if rc != 0:
-            kind = "a non-negative integer <= 65535" if lib.setting_is_int.get(name) else \
-                f"a finite {lib.scalar}"
-            raise SettingsError(f"setting {name}: {value!r} is not {kind}")
-    st = lib.lib.attekf_settings_check(buf)
-    if st != 0:
-        # att_settings_check does not say which field is wrong: find it by applying the
-        # changed settings one at a time to the defaults.
-        culprits = []
-        for name, value in (settings or {}).items():
-            one = lib.new_settings()
-            lib.lib.attekf_settings_default(one)
-            lib.lib.attekf_setting_set(one, str(name).encode(), float(value))
-            if lib.lib.attekf_settings_check(one) != 0:
-                culprits.append(f"{name}={value!r}")
-        which = ", ".join(culprits) if culprits else "a combination of " + ", ".join(
-            f"{k}={v!r}" for k, v in (settings or {}).items())
-        raise SettingsError(f"settings refused by att_settings_check ({lib.status_name(st)}): "
-                            f"{which} out of range (the ranges: firmware/att/att.h)")
-    return buf
-
-
 # ---------------------------------------------------------------------------------------------
-# Running
+# Checking array arguments and time
 # ---------------------------------------------------------------------------------------------
-@dataclass
-class Result:
-    """Per-sample outputs of the C estimator (all after the sample was processed).
-
-    t        (N,) s, the recording's timestamps
-    state    (N, 9) x = [p q r phi theta psi phid thetad psid] (rad/s, rad)
-    var      (N, 9) att_get_variances (same order; (rad/s)^2, rad^2): the diagonal of P, for
-             the angles that of the reported attitude covariance
-    angle_cov (N, 6) the reported roll/pitch/yaw covariance, rad^2 (att_get_angle_covariance:
-             phi phi, theta theta, psi psi, phi theta, phi psi, theta psi)
-    quat     (N, 4) [w x y z] body->ENU
-    flags    (N,) uint32 ATT_FLAG_* bits
-    status   (N, 5) uint8 ekf_status_t of the step and of its stages (STATUS_COLUMNS)
-    diag     the filter's counters (att_diag_t) after the last sample
-    diag_values  the other diagnostics of att_diag_t after the last sample (innovation test
-             ratios, 1; accel_norm_error m/s^2; mag_norm_error, 1; mag_dip_error rad)
-    settings the settings used, by name; scalar: "float", "double" or "fixed"
-    status_names code -> name of every code that occurs in status
-    mag_absent samples given without magnetometer (no magnetometer, or an all-NaN row)
-    c_seconds  CPU time (process) spent inside the C calls (attekf_run), s: the estimator's
-               own cost without Python set-up (`attekf bench` per-sample cost)
-    """
-
-    t: np.ndarray
-    state: np.ndarray
-    var: np.ndarray
-    quat: np.ndarray
-    flags: np.ndarray
-    status: np.ndarray
-    diag: Dict[str, int]
-    settings: Dict[str, Union[float, int]]
-    scalar: str
-    status_names: Dict[int, str] = field(default_factory=dict)
-    mag_absent: int = 0
-    c_seconds: float = 0.0  # CPU time inside the attekf_run calls (the C loop), s
-    diag_values: Dict[str, Union[float, tuple]] = field(default_factory=dict)
-    angle_cov: Optional[np.ndarray] = None
-
-    def __len__(self) -> int:
-        return int(self.t.shape[0])
-
-    @property
-    def euler(self) -> np.ndarray:
-        """(N, 3) roll, pitch, yaw in rad (ZYX, body->ENU)."""
-        return self.state[:, 3:6]
-
-    @property
-    def var_euler(self) -> np.ndarray:
-        """(N, 3) variances of roll, pitch, yaw in rad^2."""
-        return self.var[:, 3:6]
-
-    @property
-    def sigma_euler(self) -> np.ndarray:
-        """(N, 3) 1-sigma uncertainty of roll, pitch, yaw in rad (sqrt of var_euler)."""
-        return np.sqrt(self.var[:, 3:6])
-
-    @property
-    def rate(self) -> np.ndarray:
-        """(N, 3) estimated body rates p, q, r in rad/s (body frame)."""
-        return self.state[:, 0:3]
-
-    @property
-    def aligned(self) -> np.ndarray:
-        """(N,) bool: the filter had its initial attitude after the sample."""
-        return (self.flags & ATT_FLAGS["ALIGNED"]) != 0
-
-    def refused(self, column: str = "step") -> np.ndarray:
-        """(N,) bool: samples whose step (or stage) returned an error code, i.e. input
-        refused or numerically refused; not counted: OK, gated, skipped by policy, and
-        'not initialised' of a stage while the filter was still aligning."""
-        s = self.status[:, STATUS_COLUMNS.index(column)]
-        return (s != EKF_OK) & (s != EKF_GATED) & (s != EKF_SKIPPED) & (s != EKF_ERR_NOT_INITIALISED)
-
-    def summary(self) -> Dict[str, object]:
-        """Counts of what happened to the samples: nothing is dropped without a count."""
-        out: Dict[str, object] = {"samples": len(self), "aligned_samples": int(self.aligned.sum()),
-                                  "mag_absent": int(self.mag_absent)}
-        refused = {}
-        for k, col in enumerate(STATUS_COLUMNS):
-            codes, counts = np.unique(self.status[:, k], return_counts=True)
-            per = {self.status_names.get(int(c), str(int(c))): int(n)
-                   for c, n in zip(codes, counts) if c != EKF_OK}
-            if per:
-                refused[col] = per
-        out["status_counts"] = refused
-        out["samples_refused"] = int(self.refused().sum())
-        out["diag"] = dict(self.diag)
-        return out
+def rows3(name: str, a, unit: str, n: Optional[int] = None, layout_known: bool = False) -> np.ndarray:
+    """a as a C-contiguous float64 (N, 3) array of samples; ValueError naming the argument
+    for any other shape and, unless layout_known (a recording read from a file), for the
+    ambiguous (3, 3) and a transposed (3, N)."""
+    try:
+        arr = np.ascontiguousarray(a, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name}: not an array of numbers ({unit})") from None
+    shape = arr.shape
+    if not layout_known and arr.ndim == 2 and shape == (3, 3):
+        raise ValueError(f"{name}: shape (3, 3) is ambiguous (three samples as rows, or one per "
+                         "column?): give samples as the rows of an (N, 3) array with N other than 3, "
+                         "or call Filter.update() per sample")
+    if not layout_known and arr.ndim == 2 and shape[0] == 3 and shape[1] != 3:
+        raise ValueError(f"{name}: shape {shape}, expected (N, 3): samples are rows ({name}.T?)")
+    if arr.ndim == 1 and shape == (3,):
+        raise ValueError(f"{name}: shape (3,), expected (N, 3): one sample goes to Filter.update()")
+    if arr.ndim != 2 or shape[1] != 3 or (n is not None and shape[0] != n):
+        want = "(N, 3)" if n is None else f"({n}, 3)"
+        raise ValueError(f"{name}: shape {shape}, expected {want} ({unit})")
+    return arr
 
 
 def time_steps(n: int, t: Optional[np.ndarray] = None, rate_hz: Optional[float] = None,
-               dt: Union[None, float, np.ndarray] = None, t_prev: Optional[float] = None
-               ) -> np.ndarray:
+               dt: Union[None, float, np.ndarray] = None, t_prev: Optional[float] = None,
+               first: Optional[float] = None) -> np.ndarray:
     """(n,) time steps in s from exactly one of: timestamps t (n,) s, a sample rate rate_hz
     (Hz), or dt (s, one value or (n,)). With timestamps the first step is t[0] - t_prev
-    when the time of the previous sample is known, else the next step (the filter aligns on
-    the first samples and does not use it)."""
+    when the time of the previous sample is known, else `first`, else the next step (a new
+    filter aligns on its first samples and does not use it). Every step must be a positive
+    finite number (timestamps strictly increasing): ValueError naming the argument and
+    sample otherwise."""
     if (t is not None) + (rate_hz is not None) + (dt is not None) != 1:
         raise ValueError("give exactly one of t (timestamps, s), rate_hz (Hz) or dt (s)")
     if t is not None:
-        t = np.ascontiguousarray(t, dtype=np.float64)
+        try:
+            t = np.ascontiguousarray(t, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise TypeError("t: not an array of numbers (s)") from None
         if t.shape != (n,):
             raise ValueError(f"t: shape {t.shape}, expected ({n},)")
+        if not np.isfinite(t).all():
+            k = int(np.argmin(np.isfinite(t)))
+            raise ValueError(f"t: sample {k}: {float(t[k])!r} is not a finite time (s)")
         out = np.empty(n, np.float64)
         if n:
             out[1:] = np.diff(t)
             if t_prev is not None:
                 out[0] = t[0] - t_prev
+            elif first is not None:
+                out[0] = first
+            elif n > 1:
+                out[0] = out[1]
             else:
-                out[0] = out[1] if n > 1 else 0.01
+                raise ValueError("t: one timestamp and no earlier one gives no time step: give dt (s)")
+        bad = ~(out > 0)
+        if bad.any():
+            k = int(np.argmax(bad))
+            before = f"t[{k - 1}] = {float(t[k - 1])!r}" if k else f"the previous batch's last time {t_prev!r}"
+            raise ValueError(f"t: not strictly increasing: t[{k}] = {float(t[k])!r} after {before}")
         return out
     if rate_hz is not None:
-        rate = float(rate_hz)
-        if not np.isfinite(rate) or rate <= 0.0:
+        try:
+            rate = float(rate_hz)
+        except (TypeError, ValueError):
+            raise TypeError(f"rate_hz: {rate_hz!r} is not a number (Hz)") from None
+        if not np.isfinite(rate) or rate <= 0.0 or not np.isfinite(1.0 / rate):
             raise ValueError(f"rate_hz: {rate_hz!r} is not a positive sample rate in Hz")
         return np.full(n, 1.0 / rate)
-    steps = np.asarray(dt, dtype=np.float64)
+    try:
+        steps = np.asarray(dt, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError(f"dt: {dt!r} is not a number (s) or an array of them") from None
     if steps.ndim == 0:
+        if not (np.isfinite(steps) and steps > 0):
+            raise ValueError(f"dt: {dt!r} is not a positive, finite time step (s)")
         return np.full(n, float(steps))
     if steps.shape != (n,):
         raise ValueError(f"dt: shape {steps.shape}, expected ({n},) or one value")
+    bad = ~(np.isfinite(steps) & (steps > 0))
+    if bad.any():
+        k = int(np.argmax(bad))
+        raise ValueError(f"dt: sample {k}: {float(steps[k])!r} is not a positive, finite time step (s)")
     return np.ascontiguousarray(steps)
 
 
-def _arr3(name: str, a, n: int) -> np.ndarray:
-    a = np.ascontiguousarray(a, dtype=np.float64)
-    if a.shape != (n, 3):
-        raise ValueError(f"{name}: shape {a.shape}, expected ({n}, 3)")
-    return a
-
-
-def _run(lib: _Lib, fbuf, sbuf, t: np.ndarray, dt: np.ndarray, gyr: np.ndarray,
-         acc: np.ndarray, mag: Optional[np.ndarray],
-         progress: Optional[Callable[[int], None]] = None) -> Result:
-    """att_step over the arrays on the filter fbuf, continuing from its state: one C call
-    for all samples, or blocks of BLOCK samples with a progress callback."""
+# ---------------------------------------------------------------------------------------------
+# Running
+# ---------------------------------------------------------------------------------------------
+def run_core(lib: Library, core, t: np.ndarray, dt: np.ndarray, gyr: np.ndarray, acc: np.ndarray,
+             mag: Optional[np.ndarray], progress: Optional[Callable[[int], None]] = None,
+             frame: str = "ENU") -> Result:
+    """att_step over checked arrays (rows3, time_steps) on the Core, continuing from its state:
+    one C call for all samples, or blocks of BLOCK samples with a progress callback."""
     n = dt.shape[0]
-    state = np.empty((n, N_STATES), np.float64)
-    var = np.empty((n, N_STATES), np.float64)
-    quat = np.empty((n, 4), np.float64)
-    flags = np.empty(n, np.uint32)
-    status = np.empty((n, len(STATUS_COLUMNS)), np.uint8)
-    cov = np.empty((n, 6), np.float64)
-
-    def ptr(a, typ, start):
-        # rows from 'start' of a C-contiguous array; the view keeps the array alive
-        return None if a is None else a[start:].ctypes.data_as(typ)
-
+    out = {"state": np.empty((n, N_STATES)), "var": np.empty((n, N_STATES)), "quat": np.empty((n, 4)),
+           "euler": np.empty((n, 3)), "angle_cov": np.empty((n, 6)), "flags": np.empty(n, np.uint32),
+           "status": np.empty((n, len(lib.status_columns)), np.uint8), "gyro_bias": np.empty((n, 3)),
+           "gyro_bias_sigma": np.empty((n, 3))}
+    order = ("state", "var", "quat", "euler", "angle_cov", "flags", "status", "gyro_bias", "gyro_bias_sigma")
     block = BLOCK if progress is not None else max(n, 1)
     c_seconds = 0.0
     for start in range(0, n, block):
-        stop = min(n, start + block)
+        rows = slice(start, min(n, start + block))
         t0 = time.process_time()
-        rc = lib.lib.attekf_run_cov(
-            fbuf, stop - start, ptr(dt, _dp, start), ptr(gyr, _dp, start), ptr(acc, _dp, start),
-            ptr(mag, _dp, start), ptr(state, _dp, start), ptr(var, _dp, start),
-            ptr(quat, _dp, start), ptr(flags, _u32p, start), ptr(status, _u8p, start),
-            ptr(cov, _dp, start))
+        core.run(dt[rows], gyr[rows], acc[rows], None if mag is None else mag[rows],
+                 *(out[k][rows] for k in order))
         c_seconds += time.process_time() - t0
-        if rc != 0:
-            raise NativeError(f"attekf_run: {lib.status_name(rc)}")
         if progress is not None:
-            progress(stop - start)
-    codes = np.unique(status)
+            progress(rows.stop - rows.start)
+    codes = np.flatnonzero(np.bincount(out["status"].ravel(), minlength=1))   # the codes that occur
     mag_absent = n if mag is None else int(np.all(np.isnan(mag), axis=1).sum())
-    return Result(t=t, state=state, var=var, quat=quat, flags=flags, status=status,
-                  diag=lib.diag(fbuf), settings=_settings_to_dict(lib, sbuf), scalar=lib.scalar,
-                  status_names={int(c): lib.status_name(int(c)) for c in codes},
-                  mag_absent=mag_absent, c_seconds=c_seconds, diag_values=lib.diag_values(fbuf),
-                  angle_cov=cov)
+    return Result(t=t, scalar=lib.scalar, frame=frame, settings=lib.settings_dict(core.settings()),
+                  diag=dict(zip(lib.diag_names, core.diag())), diag_values=_diag_values(lib, core),
+                  status_names={int(c): lib.status_name(int(c)) for c in codes}, mag_absent=mag_absent,
+                  c_seconds=c_seconds, status_columns=lib.status_columns, **out)
 
 
-def _new_filter(lib: _Lib, sbuf):
-    fbuf = lib.new_filter()
-    st = lib.lib.attekf_filter_init(fbuf, sbuf)
-    if st != 0:
-        raise NativeError(f"att_init: {lib.status_name(st)}")
-    return fbuf
+def _diag_values(lib: Library, core) -> Dict[str, Union[float, tuple]]:
+    """The other diagnostics of att_diag_t (test ratios, norm and dip errors), by name: a float,
+    or a tuple for an array field."""
+    flat = core.diag_values()
+    values: Dict[str, Union[float, tuple]] = {}
+    k = 0
+    for name, n in zip(lib.diag_value_names, lib.diag_value_lens):
+        values[name] = float(flat[k]) if n == 1 else tuple(float(v) for v in flat[k:k + n])
+        k += n
+    return values
 
 
 def run_arrays(t: np.ndarray, gyr: np.ndarray, acc: np.ndarray, mag: Optional[np.ndarray] = None,
@@ -502,17 +380,18 @@ def run_arrays(t: np.ndarray, gyr: np.ndarray, acc: np.ndarray, mag: Optional[np
     lib = load(scalar)
     t = np.ascontiguousarray(t, dtype=np.float64)
     n = t.shape[0]
-    gyr = _arr3("gyr", gyr, n)
-    acc = _arr3("acc", acc, n)
-    mag = None if mag is None else _arr3("mag", mag, n)
-    sbuf = _make_settings(lib, settings)
-    fbuf = _new_filter(lib, sbuf)
-    return _run(lib, fbuf, sbuf, t, time_steps(n, t=t), gyr, acc, mag, progress)
+    gyr = rows3("gyr", gyr, "rad/s", n, layout_known=True)
+    acc = rows3("acc", acc, "m/s^2", n, layout_known=True)
+    mag = None if mag is None else rows3("mag", mag, "uT", n, layout_known=True)
+    core = lib.new_core(lib.make_settings(settings))
+    # the first step of a new filter is an alignment sample's, which the filter does not use
+    return run_core(lib, core, t, time_steps(n, t=t, first=1.0 if n == 1 else None), gyr, acc, mag, progress)
 
 
-def run_estimator(recording: Recording, settings: Optional[Dict[str, float]] = None,
+def run_estimator(recording, settings: Optional[Dict[str, float]] = None,
                   scalar: str = "float", use_mag: bool = True,
                   progress: Optional[Callable[[int], None]] = None) -> Result:
-    """Runs the C estimator over a recording (use_mag=False: as if it had no magnetometer)."""
+    """Runs the C estimator over a recording (attekf.io.Recording; use_mag=False: as if it had
+    no magnetometer)."""
     return run_arrays(recording.t, recording.gyr, recording.acc,
                       recording.mag if use_mag else None, settings, scalar, progress)

@@ -146,20 +146,27 @@ def _legend_extra(tr: TrialEval):
 # ---------------------------------------------------------------------------------------------
 # The figure
 # ---------------------------------------------------------------------------------------------
-def plot_trial(tr: TrialEval, path: str, dpi: int = 110) -> str:
-    """Writes the trial's figure (module docstring) as a PNG to path (atomically); returns path."""
+PLOT_STEPS = 5  # progress steps of plot_trial: the four rows of panels, then the PNG
+
+
+def plot_trial(tr: TrialEval, path: str, dpi: int = 110, progress=None) -> str:
+    """Writes the trial's figure (module docstring) as a PNG to path (atomically); returns path.
+    progress(1) is called PLOT_STEPS times along the way."""
     from .outputs import atomic_path
-    fig = trial_figure(tr)
+    fig = trial_figure(tr, progress)
     try:
         with atomic_path(path) as tmp:
             fig.savefig(tmp, dpi=dpi, format="png")
+        if progress is not None:
+            progress(1)
     finally:
         plt.close(fig)
     return path
 
 
-def trial_figure(tr: TrialEval):
-    """The trial's figure (module docstring); the caller closes it."""
+def trial_figure(tr: TrialEval, progress=None):
+    """The trial's figure (module docstring); the caller closes it. progress(1) after each of
+    the four rows of panels."""
     t = tr.t
     fig, axes = plt.subplots(4, 2, figsize=(14, 10.5), sharex=True, constrained_layout=True,
                              gridspec_kw={"height_ratios": [1, 1, 1, 1.1]})
@@ -201,12 +208,22 @@ def trial_figure(tr: TrialEval):
             ax.plot(t, err, color="tab:red", lw=0.6, label="estimate − truth", zorder=2)
             n = mark_beyond(ax, t, err, -lim, lim, "tab:red")
             _note_beyond(ax, n, int(np.isfinite(err).sum()), f"±{lim:.3g}°")
+        elif tr.var_euler is not None:   # no truth: the filter's own band, and say so
+            s3 = 3.0 * np.degrees(np.sqrt(tr.var_euler[:, k]))
+            finite = s3[np.isfinite(s3)]
+            lim = max(1.2 * float(np.percentile(finite, 95)), 1e-3) if finite.size else 1.0
+            ax.fill_between(t, -s3, s3, color="tab:green", alpha=0.25, lw=0, label="±3σ (filter)")
+            ax.text(0.01, 0.96, "no ground truth: no error, the filter's ±3σ only", transform=ax.transAxes,
+                    fontsize=7, va="top")
         ax.set_ylim(-lim, lim)
         ax.set_ylabel(f"{ang} error (°)")
         ax.grid(alpha=0.3)
         if k == 0:
             ax.set_title("Euler-angle error and the filter's ±3σ", fontsize=10)
-            ax.legend(loc="upper right", fontsize=7)
+            if ax.get_legend_handles_labels()[0]:
+                ax.legend(loc="upper right", fontsize=7)
+        if progress is not None:
+            progress(1)
 
     ax = axes[3, 0]
     _background(ax, tr)
@@ -235,6 +252,8 @@ def trial_figure(tr: TrialEval):
     axes[3, 1].set_xlabel("t (s)")
     if len(t):
         axes[0, 0].set_xlim(t[0], t[-1])
+    if progress is not None:
+        progress(1)
     return fig
 
 

@@ -186,6 +186,30 @@ def _window(t: np.ndarray, start: float, stop: float, ramp: float = 0.5) -> np.n
     return 0.5 - 0.5 * np.cos(np.pi * np.minimum(up, down))
 
 
+def sensor_model(cfg: SimConfig, q: np.ndarray, q_prev: np.ndarray, dt, lin: np.ndarray,
+                 dist: np.ndarray, rng: np.random.Generator):
+    """(gyr, acc, mag or None, gyro bias) from the truth q at the sample instants and q_prev one
+    time step dt (s, scalar or (N,)) before each (module docstring): gyro = rotation vector of
+    q_prev^-1 q / dt + constant bias (drawn, sigma cfg.gyro_bias_rad_s per axis) + white noise;
+    accelerometer R^T (g_up + lin) + noise; magnetometer R^T (m_earth + dist) + noise. lin, dist:
+    (N, 3) earth-frame linear acceleration (m/s^2) and magnetic disturbance (uT)."""
+    n = q.shape[0]
+    gyr_true = _rotvec_of(quat_mul(quat_conj(q_prev), q)) / np.reshape(dt, (-1, 1))
+    q_inv = quat_conj(q)
+    g_up = np.array([0.0, 0.0, cfg.gravity_m_s2])
+    acc = quat_rotate(q_inv, g_up[None, :] + lin)
+    dip = np.radians(cfg.dip_deg)
+    m_earth = cfg.field_uT * np.array([0.0, np.cos(dip), -np.sin(dip)])
+    mag = quat_rotate(q_inv, m_earth[None, :] + dist) if cfg.with_mag else None
+
+    bias = rng.normal(scale=cfg.gyro_bias_rad_s, size=3)
+    gyr = gyr_true + bias[None, :] + rng.normal(scale=cfg.gyro_noise_rad_s, size=(n, 3))
+    acc = acc + rng.normal(scale=cfg.acc_noise_m_s2, size=(n, 3))
+    if mag is not None:
+        mag = mag + rng.normal(scale=cfg.mag_noise_uT, size=(n, 3))
+    return gyr, acc, mag, bias
+
+
 def simulate(cfg: SimConfig) -> Recording:
     """A recording with truth (quat_ref), movement mask and the configuration in meta."""
     cfg.validate()
@@ -196,7 +220,6 @@ def simulate(cfg: SimConfig) -> Recording:
     q = _truth(segs, t)
     q_prev = _truth(segs, t - 1.0 / cfg.rate_hz)
     dt = 1.0 / cfg.rate_hz
-    gyr_true = _rotvec_of(quat_mul(quat_conj(q_prev), q)) / dt
 
     # disturbances (earth frame)
     lin = np.zeros((n, 3))
@@ -219,18 +242,7 @@ def simulate(cfg: SimConfig) -> Recording:
             dist[a:b + 1] += _window(t[a:b + 1], ep[1], ep[2])[:, None] * v[None, :]
             cfg.episodes.append(ep)
 
-    q_inv = quat_conj(q)
-    g_up = np.array([0.0, 0.0, cfg.gravity_m_s2])
-    acc = quat_rotate(q_inv, g_up[None, :] + lin)
-    dip = np.radians(cfg.dip_deg)
-    m_earth = cfg.field_uT * np.array([0.0, np.cos(dip), -np.sin(dip)])
-    mag = quat_rotate(q_inv, m_earth[None, :] + dist) if cfg.with_mag else None
-
-    bias = rng.normal(scale=cfg.gyro_bias_rad_s, size=3)
-    gyr = gyr_true + bias[None, :] + rng.normal(scale=cfg.gyro_noise_rad_s, size=(n, 3))
-    acc = acc + rng.normal(scale=cfg.acc_noise_m_s2, size=(n, 3))
-    if mag is not None:
-        mag = mag + rng.normal(scale=cfg.mag_noise_uT, size=(n, 3))
+    gyr, acc, mag, bias = sensor_model(cfg, q, q_prev, dt, lin, dist, rng)
 
     movement = t >= cfg.initial_rest_s
     meta = {

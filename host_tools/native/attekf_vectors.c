@@ -10,9 +10,11 @@
  * (NaN gyro, accelerometer out of range, a partial-NaN magnetometer row, a time step above
  * dt_max, magnetometer absent) exercise the refusal paths.
  *
- * tests/python/test_native.py runs this program and checks that the Python binding
- * (attekf_run through ctypes) reproduces every value bit for bit. This loop is written
- * independently of attekf_run on purpose: the test compares two paths to att_step.
+ * tests/python/test_native.py runs this program and checks that the Python extension's batch
+ * runner (Core.run, host_tools/native/core_filter.c) reproduces every value bit for bit once
+ * the filter has aligned (before, the extension reports NaN and infinite variances: no
+ * estimate). This loop is written independently of Core.run on purpose: the test compares
+ * two paths to att_step.
  *
  * Line format after two header lines ('#' comment, then the column names):
  *   t dt gyr[3] acc[3] mag[3] | state[9] var[9] quat[4] flags status[5]

@@ -46,7 +46,7 @@ int main(int argc, char **argv)
         ts_bench_motion(sim.t, w);
         ts_sim_step(&sim, aligned ? w : still, NULL, &smp);
         st = att_step(&f, &smp, NULL);
-        errors += (st != EKF_OK && st != EKF_GATED && st != EKF_SKIPPED);
+        errors += ekf_status_is_error(st);
         att_get_euler(&f, e);
         fprintf(out, "%.6f %.17e %.17e %.17e\n", sim.t, ekf_to_double(e[0]), ekf_to_double(e[1]), ekf_to_double(e[2]));
     }

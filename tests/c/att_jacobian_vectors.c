@@ -29,6 +29,25 @@ static void put(FILE *fp, const ekf_scalar_t *v, int n)
     }
 }
 
+/* C = Exp([u]x) and Jr(u) dt in double, on the grid (att_model_rotation's formulas, written
+ * out in double: the inputs, not what is checked here). */
+static void grid_rotation(const double u[3], double dt, ekf_scalar_t C[9], ekf_scalar_t J[9])
+{
+    const double th2 = u[0] * u[0] + u[1] * u[1] + u[2] * u[2], th = sqrt(th2);
+    const double a = (th > 1e-6) ? sin(th) / th : 1.0 - th2 / 6.0;
+    const double b = (th > 1e-4) ? (1.0 - cos(th)) / th2 : 0.5 - th2 / 24.0;
+    const double c = (th > 1e-3) ? (th - sin(th)) / (th2 * th) : 1.0 / 6.0 - th2 / 120.0;
+    const double U[9] = {0.0, -u[2], u[1], u[2], 0.0, -u[0], -u[1], u[0], 0.0};
+    int i, j;
+    for (i = 0; i < 3; ++i) {
+        for (j = 0; j < 3; ++j) {
+            const double u2 = u[i] * u[j] - ((i == j) ? th2 : 0.0), one = (i == j) ? 1.0 : 0.0;
+            C[3 * i + j] = in(one + a * U[3 * i + j] + b * u2);
+            J[3 * i + j] = in((one - b * U[3 * i + j] + c * u2) * dt);
+        }
+    }
+}
+
 /* Trigonometry of (phi, theta) computed in double (pitch clamped to the limit, as att_trig
  * does) and put on the grid. */
 static void grid_trig(double phi, double theta, att_trig_t *out)
@@ -57,8 +76,9 @@ int main(int argc, char **argv)
     }
     ts_rng_seed(&r, 31337);
     for (k = 0; k < STATES; ++k) {
-        ekf_scalar_t x[ATT_N], d[ATT_GEN_F_NNZ], g[9], h[3], hj[6], lev[3], er[3], br[3], m[3], dt;
-        att_trig_t tm, tn, tn_own;
+        ekf_scalar_t x[ATT_N], d1[ATT_GEN_F1_NNZ], d2[ATT_GEN_F2_NNZ], g[9], h[3], hj[6], lev[3], er[3], br[3], m[3];
+        ekf_scalar_t dt, rot[9], jd[9];
+        att_trig_t tb, tn, tn_own;
         const int rest = (k % 10) == 0, edge = (k % 10) == 1;
         for (i = 0; i < 3; ++i) {
             x[ATT_P + i] = rest ? EKF_C(0) : in(ts_uniform_in(&r, -40.0, 40.0));
@@ -71,12 +91,11 @@ int main(int argc, char **argv)
         x[ATT_PSI] = in(ts_uniform_in(&r, -3.14159, 3.14159));
         dt = in(ts_uniform_in(&r, 0.001, 0.01));
         {
-            const double half = 0.5 * ekf_to_double(dt); /* exact in double, in both builds */
-            /* midpoint and advanced angles computed in double and put on the grid: the
+            /* angles before and after the step computed in double and put on the grid: the
              * Jacobian's sensitivity to the angle (~sec^3 |w|) would otherwise amplify the
              * rounding of this input step, not of the functions under test */
-            const double phim = ekf_to_double(in(ekf_to_double(x[ATT_PHI]) + half * ekf_to_double(x[ATT_PHID])));
-            const double thm = ekf_to_double(in(ekf_to_double(x[ATT_THETA]) + half * ekf_to_double(x[ATT_THETAD])));
+            const double u[3] = {ekf_to_double(x[ATT_P]) * ekf_to_double(dt), ekf_to_double(x[ATT_Q]) * ekf_to_double(dt),
+                                 ekf_to_double(x[ATT_R]) * ekf_to_double(dt)};
             const double phin = ekf_to_double(in(ekf_to_double(x[ATT_PHI]) + ekf_to_double(dt) * ekf_to_double(x[ATT_PHID])));
             const double thn = ekf_to_double(in(ekf_to_double(x[ATT_THETA]) + ekf_to_double(dt) * ekf_to_double(x[ATT_THETAD])));
             /* this build's own trigonometry: written out and checked on its own */
@@ -86,10 +105,11 @@ int main(int argc, char **argv)
              * arithmetic: the fixed-point sine and cosine (a few LSB off) would otherwise be
              * amplified by the functions' sensitivity to the angle, which no arrangement of
              * the arithmetic can remove. */
-            grid_trig(phim, thm, &tm);
+            grid_trig(ekf_to_double(x[ATT_PHI]), ekf_to_double(x[ATT_THETA]), &tb);
             grid_trig(phin, thn, &tn);
+            grid_rotation(u, ekf_to_double(dt), rot, jd);
         }
-        att_gen_transition_jacobian(&tm, &tn, x, dt, d);
+        att_gen_transition_factors(&tb, &tn, x, rot, jd, d1, d2);
         att_gen_noise_jacobian(&tn, g);
         att_gen_accel_h(&tn, h);
         att_gen_accel_jacobian(&tn, hj);
@@ -102,7 +122,8 @@ int main(int argc, char **argv)
         put(fp, &tn.sth, 1);
         put(fp, &tn.cth, 1);
         put(fp, &tn.secth, 1);
-        put(fp, d, ATT_GEN_F_NNZ);
+        put(fp, d1, ATT_GEN_F1_NNZ);
+        put(fp, d2, ATT_GEN_F2_NNZ);
         put(fp, g, 9);
         put(fp, h, 3);
         put(fp, hj, 6);
@@ -111,8 +132,8 @@ int main(int argc, char **argv)
         put(fp, br, 3);
     }
     fclose(fp);
-    /* 71 values per state: compare_vectors's GROUP (tests/c/CMakeLists.txt) */
-    if (5 + ATT_GEN_F_NNZ + 9 + 3 + 6 + 3 + 3 + 3 != 71) {
+    /* 65 values per state: compare_vectors's GROUP (tests/c/CMakeLists.txt) */
+    if (5 + ATT_GEN_F1_NNZ + ATT_GEN_F2_NNZ + 9 + 3 + 6 + 3 + 3 + 3 != 65) {
         fprintf(stderr, "values per state changed: update GROUP in tests/c/CMakeLists.txt\n");
         return 1;
     }

@@ -202,18 +202,17 @@ static void test_reported_covariance_contains_references(void)
     TEST_ASSERT_TRUE(var[ATT_P] == att_cov_var(&f.vars.cov, ATT_P));
 }
 
-/* att_bias_predict reads D1's entries by their place in att_gen_f1_pattern. */
+/* att_bias_predict reads D1's entries by their place in att_gen_f1_pattern: angle row a,
+ * column j of the body rates and angles at 6 a + j. */
 static void test_f1_pattern_as_the_bias_filter_reads_it(void)
 {
-    static const struct {
-        int at, row, col;
-    } used[] = {{0, ATT_PHI, ATT_P},    {1, ATT_PHI, ATT_Q},     {2, ATT_PHI, ATT_R},   {3, ATT_PHI, ATT_PHI},
-                {4, ATT_PHI, ATT_THETA}, {7, ATT_THETA, ATT_Q},  {8, ATT_THETA, ATT_R}, {9, ATT_THETA, ATT_PHI},
-                {11, ATT_PSI, ATT_Q},    {12, ATT_PSI, ATT_R},   {13, ATT_PSI, ATT_PHI}, {14, ATT_PSI, ATT_THETA}};
-    size_t i;
-    for (i = 0; i < sizeof used / sizeof used[0]; ++i) {
-        TEST_ASSERT_EQUAL_INT(used[i].row, att_gen_f1_pattern[used[i].at].row);
-        TEST_ASSERT_EQUAL_INT(used[i].col, att_gen_f1_pattern[used[i].at].col);
+    int a, j;
+    TEST_ASSERT_EQUAL_INT(18, ATT_GEN_F1_NNZ);
+    for (a = 0; a < 3; ++a) {
+        for (j = 0; j < 6; ++j) {
+            TEST_ASSERT_EQUAL_INT(ATT_PHI + a, att_gen_f1_pattern[6 * a + j].row);
+            TEST_ASSERT_EQUAL_INT(j, att_gen_f1_pattern[6 * a + j].col);
+        }
     }
 }
 

@@ -172,15 +172,15 @@ static void stage_errors(att_ekf_t *f, const att_sample_t *good)
     int k;
 
     TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_predict(NULL, good->dt));
-    TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_update_gyro(NULL, good->gyro));
-    TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_update_accel(NULL, good->accel));
-    TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_update_mag(NULL, good->mag));
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_update_gyro(NULL, good->gyro, EKF_C(0.01)));
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_update_accel(NULL, good->accel, EKF_C(0.01)));
+    TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_update_mag(NULL, good->mag, EKF_C(0.01)));
     if (!is_aligned) {
         REFUSED(f, att_predict(f, good->dt), EKF_ERR_NOT_INITIALISED, CNT_REJECTED);
-        REFUSED(f, att_update_gyro(f, good->gyro), EKF_ERR_NOT_INITIALISED, CNT_REJECTED);
-        REFUSED(f, att_update_accel(f, good->accel), EKF_ERR_NOT_INITIALISED, CNT_REJECTED);
-        REFUSED(f, att_update_mag(f, good->mag), EKF_ERR_NOT_INITIALISED, CNT_REJECTED);
-        REFUSED(f, att_update_mag(f, NULL), EKF_ERR_NOT_INITIALISED, CNT_REJECTED);
+        REFUSED(f, att_update_gyro(f, good->gyro, EKF_C(0.01)), EKF_ERR_NOT_INITIALISED, CNT_REJECTED);
+        REFUSED(f, att_update_accel(f, good->accel, EKF_C(0.01)), EKF_ERR_NOT_INITIALISED, CNT_REJECTED);
+        REFUSED(f, att_update_mag(f, good->mag, EKF_C(0.01)), EKF_ERR_NOT_INITIALISED, CNT_REJECTED);
+        REFUSED(f, att_update_mag(f, NULL, EKF_C(0.01)), EKF_ERR_NOT_INITIALISED, CNT_REJECTED);
         return;
     }
     for (k = 0; k < 6; ++k) {
@@ -188,11 +188,11 @@ static void stage_errors(att_ekf_t *f, const att_sample_t *good)
     }
     for (k = 0; k < N_BAD_VEC; ++k) {
         const ekf_scalar_t *v = bad_vec(k, good->gyro, s->gyro_range, buf, &want);
-        REFUSED(f, att_update_gyro(f, v), want, CNT_REJECTED);
+        REFUSED(f, att_update_gyro(f, v, EKF_C(0.01)), want, CNT_REJECTED);
         v = bad_vec(k, good->accel, s->accel_range, buf, &want);
-        REFUSED(f, att_update_accel(f, v), want, CNT_REJECTED);
+        REFUSED(f, att_update_accel(f, v, EKF_C(0.01)), want, CNT_REJECTED);
         v = bad_vec(k, good->mag, s->mag_range, buf, &want);
-        REFUSED(f, att_update_mag(f, v), want, CNT_REJECTED);
+        REFUSED(f, att_update_mag(f, v, EKF_C(0.01)), want, CNT_REJECTED);
     }
 }
 
@@ -350,9 +350,9 @@ static void test_numeric_failures_discard_the_whole_call(void)
     /* (a) a heading variance of -1 (P indefinite), set through the covariance interface:
      * every update refuses (no floor hides it), and so does the guard after a prediction */
     att_cov_reset_state(&f.vars.cov, ATT_PSI, EKF_C(-1));
-    REFUSED(&f, att_update_gyro(&f, good.gyro), NU, CNT_NUMERIC);
-    REFUSED(&f, att_update_accel(&f, good.accel), NU, CNT_NUMERIC);
-    REFUSED(&f, att_update_mag(&f, good.mag), NU, CNT_NUMERIC);
+    REFUSED(&f, att_update_gyro(&f, good.gyro, EKF_C(0.01)), NU, CNT_NUMERIC);
+    REFUSED(&f, att_update_accel(&f, good.accel, EKF_C(0.01)), NU, CNT_NUMERIC);
+    REFUSED(&f, att_update_mag(&f, good.mag, EKF_C(0.01)), NU, CNT_NUMERIC);
     REFUSED(&f, att_predict(&f, good.dt), NU, CNT_NUMERIC);
     /* att_step: at the first stage (gyro), in the middle of the step (the accelerometer,
      * after the prediction ran on the working copy), at the last one (the magnetometer), and
@@ -375,13 +375,14 @@ static void test_numeric_failures_discard_the_whole_call(void)
     REFUSED(&f, att_step(&f, &smp, &rep), NU, CNT_NUMERIC);
     expect_report(&rep, NU, SK, SK, SK);
 
-    /* (b) an infinite Euler-rate variance: the updates' new variances are not finite, the
-     * prediction's P is not finite for the guard */
+    /* (b) an infinite roll variance: the updates' new variances are not finite, the
+     * prediction's P is not finite for the guard (an Euler rate's would not do: the
+     * prediction replaces those rows without reading them) */
     aligned(&f, &sim);
     sample_at_rest(&sim, &good);
-    att_cov_reset_state(&f.vars.cov, ATT_PHID, inf_s(1.0));
-    REFUSED(&f, att_update_mag(&f, good.mag), NU, CNT_NUMERIC);
-    REFUSED(&f, att_update_gyro(&f, good.gyro), NU, CNT_NUMERIC);
+    att_cov_reset_state(&f.vars.cov, ATT_PHI, inf_s(1.0));
+    REFUSED(&f, att_update_mag(&f, good.mag, EKF_C(0.01)), NU, CNT_NUMERIC);
+    REFUSED(&f, att_update_gyro(&f, good.gyro, EKF_C(0.01)), NU, CNT_NUMERIC);
     REFUSED(&f, att_predict(&f, good.dt), NU, CNT_NUMERIC);
     REFUSED(&f, att_step(&f, &good, &rep), NU, CNT_NUMERIC);
     expect_report(&rep, SK, NU, SK, SK);
@@ -407,6 +408,50 @@ static void test_numeric_failures_discard_the_whole_call(void)
         smp.valid = ATT_HAS_ACCEL;
         REFUSED(&f, att_step(&f, &smp, &rep), NU, CNT_NUMERIC);
         expect_report(&rep, NU, SK, SK, SK);
+    }
+    /* (d) a correlation beyond 1, 1.01 between roll and pitch or 1.05 between heading and
+     * yaw rate: every variance positive, P indefinite by far more than rounding. No call
+     * repairs it (a repair would hide what made it); every one is refused, the filter
+     * unchanged, until att_reset starts it afresh (att.h, "Contract") */
+    {
+        static const int pairs[2][2] = {{ATT_PHI, ATT_THETA}, {ATT_PSI, ATT_R}};
+        static const double rho[2] = {1.01, 1.05};
+        int k;
+        for (k = 0; k < 2; ++k) {
+            ekf_scalar_t P[ATT_N * ATT_N];
+            const int i = pairs[k][0], j = pairs[k][1];
+            aligned(&f, &sim);
+            sample_at_rest(&sim, &good);
+            att_get_covariance(&f, P);
+            {
+                const double pij = rho[k] * sqrt(ekf_to_double(P[i * ATT_N + i]) * ekf_to_double(P[j * ATT_N + j]));
+                int m;
+                for (m = 0; m < ATT_N; ++m) { /* the pair alone correlated */
+                    if (m != i && m != j) {
+                        P[i * ATT_N + m] = P[m * ATT_N + i] = EKF_C(0);
+                        P[j * ATT_N + m] = P[m * ATT_N + j] = EKF_C(0);
+                    }
+                }
+                P[i * ATT_N + j] = P[j * ATT_N + i] = ekf_from_double(pij);
+            }
+            att_cov_from_full(&f.vars.cov, P);
+            REFUSED(&f, att_update_accel(&f, good.accel, good.dt), NU, CNT_NUMERIC);
+            REFUSED(&f, att_step(&f, &good, &rep), NU, CNT_NUMERIC);
+            /* (a prediction alone may be accepted: its rate noise, added between the steps'
+             * gyro updates, can outweigh the defect; P is then positive definite on its own,
+             * and nothing was repaired) */
+            {
+                const ekf_status_t st = att_predict(&f, good.dt);
+                ekf_scalar_t Pn[ATT_N * ATT_N];
+                att_get_covariance(&f, Pn);
+                TEST_ASSERT_TRUE(st == EKF_ERR_NUMERIC ||
+                                 (st == EKF_OK && (att_flags(&f) & ATT_FLAG_COV_REPAIRED) == 0u &&
+                                  ts_is_positive_definite(Pn, ATT_N, NULL)));
+            }
+            TEST_ASSERT_EQUAL_INT(EKF_OK, att_reset(&f));
+            TEST_ASSERT_EQUAL_INT(0, (int)(att_flags(&f) & ATT_FLAG_ALIGNED));
+            TEST_ASSERT_EQUAL_INT(0, (int)att_diag(&f)->numeric);
+        }
     }
     printf("forced numeric failures: %d refused calls checked\n", g_paths - before);
 }

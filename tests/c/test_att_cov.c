@@ -23,7 +23,7 @@
 #include "att.h"
 #include "att_cov.h"
 #include "att_cov_ref_wrap.h"
-#include "att_internal.h"
+#include "att_state.h"
 #include "att_model.h"
 #include "testsim.h"
 #include "unity.h"
@@ -90,7 +90,7 @@ static void compare_updates(const ekf_scalar_t P0[ATT_NN], const ekf_scalar_t x0
     static const int unit[4] = {ATT_P, ATT_Q, ATT_R, ATT_PSI};
     const ekf_scalar_t floor = EKF_C(1e-12);
     int u;
-    for (u = 0; u < 5; ++u) {
+    for (u = 0; u < 6; ++u) {
         ekf_scalar_t Pr[ATT_NN], xr[ATT_N], xg[ATT_N];
         ekf_innov_t ir, ig;
         att_cov_t c;
@@ -105,8 +105,11 @@ static void compare_updates(const ekf_scalar_t P0[ATT_NN], const ekf_scalar_t x0
             sr = refcov_update_unit(Pr, xr, unit[u], nu, r_var, gate, floor, &ir);
             sg = att_cov_update_unit(&c, xg, unit[u], nu, r_var, gate, floor, &ig);
         } else {
-            sr = refcov_update_tilt(Pr, xr, h_phi, h_theta, nu, r_var, gate, floor, &ir);
-            sg = att_cov_update_tilt(&c, xg, h_phi, h_theta, nu, r_var, gate, floor, &ig);
+            /* the accelerometer's rows (no heading entry), then a row on all three angles */
+            const ekf_scalar_t h[3] = {h_phi, h_theta,
+                                       (u == 4) ? EKF_C(0) : ekf_mul(EKF_C(0.5), ekf_sub(h_phi, h_theta))};
+            sr = refcov_update_angles(Pr, xr, h, nu, r_var, gate, floor, &ir);
+            sg = att_cov_update_angles(&c, xg, h, nu, r_var, gate, floor, &ig);
         }
         TEST_ASSERT_EQUAL_INT(sr, sg);
         TEST_ASSERT_EQUAL_MEMORY(xr, xg, sizeof xr);
@@ -177,11 +180,11 @@ static void test_update_refusals_identical(void)
 static void random_factors(ekf_scalar_t d1[ATT_GEN_F1_NNZ], ekf_scalar_t d2[ATT_GEN_F2_NNZ])
 {
     ekf_scalar_t x[ATT_N], xn[ATT_N];
-    att_trig_t tm, tn;
+    att_motion_t mo;
     const ekf_scalar_t dt = ekf_from_double(pow(10.0, ts_uniform_in(&g_rng, -4.0, -1.3)));
     random_state(x);
-    att_model_transition(x, NULL, dt, att_default_settings.gimbal_limit, xn, &tm, &tn);
-    att_gen_transition_factors(&tm, &tn, x, dt, d1, d2);
+    att_model_transition(x, NULL, dt, att_default_settings.gimbal_limit, xn, &mo);
+    att_gen_transition_factors(&mo.t0, &mo.t, x, mo.rot, mo.jd, d1, d2);
 }
 
 /* The scale of the rounding of entry (i, j) of F2 F1 P F1^T F2^T + G diag(var) G^T as both
@@ -433,14 +436,14 @@ static void test_filter_covariances(void)
         if (aligned && k % 5 == 0) {
             ekf_scalar_t P[ATT_NN], x[ATT_N], d1[ATT_GEN_F1_NNZ], d2[ATT_GEN_F2_NNZ], xn[ATT_N], ir[3], ig[3];
             const ekf_scalar_t var[3] = {EKF_C(1e-3), EKF_C(1e-3), EKF_C(1e-3)};
-            att_trig_t tm, tn;
+            att_motion_t mo;
             att_cov_t c;
             double e;
             att_get_covariance(&f, P);
             memcpy(x, att_state(&f), sizeof x);
             compare_updates(P, x, EKF_C(0.01), EKF_C(1e-4), EKF_C(3), EKF_C(-0.3), EKF_C(0.8), NULL);
-            att_model_transition(x, NULL, smp.dt, att_default_settings.gimbal_limit, xn, &tm, &tn);
-            att_gen_transition_factors(&tm, &tn, x, smp.dt, d1, d2);
+            att_model_transition(x, NULL, smp.dt, att_default_settings.gimbal_limit, xn, &mo);
+            att_gen_transition_factors(&mo.t0, &mo.t, x, mo.rot, mo.jd, d1, d2);
             double M[ATT_NN];
             predict_scale(P, d1, d2, var, M);
             load_gen(&c, P);

@@ -34,30 +34,9 @@ static void random_spd(ts_rng_t *r, ekf_scalar_t P[ATT_N * ATT_N])
     }
 }
 
-static void test_generated_equals_generic_bit_for_bit(void)
-{
-    ts_rng_t r;
-    int trial, k;
-    ts_rng_seed(&r, 31);
-    for (trial = 0; trial < 2000; ++trial) {
-        ekf_scalar_t P1[ATT_N * ATT_N], P2[ATT_N * ATT_N], d[ATT_GEN_F_NNZ];
-        ekf_scalar_t work[ATT_N * ATT_N];
-        random_spd(&r, P1);
-        memcpy(P2, P1, sizeof P1);
-        for (k = 0; k < ATT_GEN_F_NNZ; ++k) {
-            /* values of every magnitude the filter produces: dt-sized to sec^2-sized */
-            d[k] = ekf_from_double(ts_uniform_in(&r, -1.0, 1.0) * pow(10.0, ts_uniform_in(&r, -4.0, 2.0)));
-        }
-        TEST_ASSERT_EQUAL_INT(EKF_OK, ekf_cov_propagate(P1, ATT_N, att_gen_f_pattern, d, ATT_GEN_F_NNZ, work,
-                                                        (uint16_t)(sizeof work / sizeof work[0])));
-        att_gen_cov_propagate(P2, d);
-        TEST_ASSERT_EQUAL_MEMORY(P1, P2, sizeof P1);
-        TEST_ASSERT_TRUE(ts_is_symmetric_exact(P2, ATT_N));
-    }
-}
-
-/* The same for the two factors of the transition Jacobian (att_gen_transition_factors), which
- * the reference covariance (att_cov_ref.c) propagates one after the other. */
+/* The generated propagations of the two factors of the transition Jacobian
+ * (att_gen_transition_factors), which the reference covariance (att_cov_ref.c) propagates one
+ * after the other, equal the generic routine bit for bit. */
 static void test_factor_propagations_equal_generic_bit_for_bit(void)
 {
     ts_rng_t r;
@@ -88,7 +67,6 @@ static void test_factor_propagations_equal_generic_bit_for_bit(void)
 int main(void)
 {
     UNITY_BEGIN();
-    RUN_TEST(test_generated_equals_generic_bit_for_bit);
     RUN_TEST(test_factor_propagations_equal_generic_bit_for_bit);
     return UNITY_END();
 }

@@ -35,7 +35,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
 enum { CALL_STEP = 0, CALL_PREDICT, CALL_GYRO, CALL_ACCEL, CALL_MAG, CALL_ALIGN };
 
-static int is_error(ekf_status_t st) { return st != EKF_OK && st != EKF_GATED && st != EKF_SKIPPED; }
+static int is_error(ekf_status_t st) { return ekf_status_is_error(st); }
 
 static int pos_def(const ekf_scalar_t *P)
 {
@@ -183,9 +183,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 
         switch (call) {
         case CALL_PREDICT: st = att_predict(&f, smp.dt); break;
-        case CALL_GYRO: st = att_update_gyro(&f, smp.gyro); break;
-        case CALL_ACCEL: st = att_update_accel(&f, smp.accel); break;
-        case CALL_MAG: st = att_update_mag(&f, smp.mag); break;
+        case CALL_GYRO: st = att_update_gyro(&f, smp.gyro, smp.dt); break;
+        case CALL_ACCEL: st = att_update_accel(&f, smp.accel, smp.dt); break;
+        case CALL_MAG: st = att_update_mag(&f, smp.mag, smp.dt); break;
         case CALL_ALIGN: st = att_align(&f, smp.accel, (smp.valid & ATT_HAS_MAG) ? smp.mag : NULL); break;
         default: st = att_step(&f, &smp, &rep); break;
         }

@@ -1,7 +1,8 @@
 """The README's C example compiles as shown: its includes at file scope, its statements in a
 function body (the sensor values as the function's parameters), with the project's warning set
 as errors against the float build's headers. Compile only; a C compiler is needed (fails under
-CI=true, skips elsewhere without one)."""
+CI=true, skips elsewhere without one). The Python examples of README.md and of the package's
+own README (host_tools/README.md, what a pip user reads) run as shown."""
 
 from __future__ import annotations
 
@@ -65,3 +66,23 @@ def test_readme_python_example_runs():
     np.testing.assert_allclose(env["res"].euler[-1], 0.0, atol=1e-6)
     np.testing.assert_allclose(env["res"].quat[-1], [1.0, 0.0, 0.0, 0.0], atol=1e-6)
     assert env["est"].quaternion.shape == (4,) and env["est"].status == "EKF_OK"
+
+
+def test_package_readme_python_example_runs():
+    """host_tools/README.md's Python example runs as shown on (N, 3) arrays gyr, acc, mag at
+    100 Hz, and its outputs are what it says: an aligned estimate with its uncertainty, and 6D."""
+    import numpy as np
+
+    text = (REPO / "host_tools" / "README.md").read_text(encoding="utf-8")
+    blocks = re.findall(r"```python\n(.*?)```", text, flags=re.S)
+    assert len(blocks) == 1, f"host_tools/README.md: expected one Python example, found {len(blocks)}"
+    n = 300
+    rng = np.random.default_rng(0)
+    env = {"gyr": rng.normal(0, 0.01, (n, 3)), "acc": np.tile([0.0, 0.0, 9.81], (n, 1)),
+           "mag": np.tile([0.0, 20.0, -40.0], (n, 1))}
+    exec(compile(blocks[0], "host_tools/README.md (python example)", "exec"), env)
+    est, res = env["est"], env["res"]
+    assert est.aligned and np.isfinite(est.quaternion).all() and est.covariance.shape == (3, 3)
+    np.testing.assert_allclose(env["roll"], 0.0, atol=0.01)
+    assert res.quat.shape == (n, 4) and res.six_d.quat.shape == (n, 4)
+    np.testing.assert_array_equal(res.quat[-1], est.quaternion)   # the same filter both ways

@@ -204,12 +204,15 @@ def test_record_decodes_a_log_to_csv_and_stats(rec_csv, tmp_path):
     import can
     fr = replay.load_frames(str(rec_csv), stop=0.1)
     bits = {k: 0 for k in cp.STATUS_BITS}
+    EPOCH = 1_767_225_600.0          # bus times as a SocketCAN log has them (2026-01-01, s)
+    sent = []
     with can.Logger(str(log)) as lg:
         for k in range(len(fr)):
-            lg(can.Message(timestamp=100.0 + fr.t[k], arbitration_id=int(fr.ids[k]), data=fr.data[k], is_extended_id=False))
+            lg(can.Message(timestamp=EPOCH + fr.t[k], arbitration_id=int(fr.ids[k]), data=fr.data[k], is_extended_id=False))
             if fr.ids[k] == cp.frame_id("IMU_SYNC") and k % 8 == 7:
                 seq = int.from_bytes(fr.data[k][4:6], "little")
-                ts = 100.0 + fr.t[k] + 0.0005
+                ts = EPOCH + fr.t[k] + 0.0005
+                sent.append(ts)
                 for name, sig in (("ATT_EULER", {"Roll": 0.1, "Pitch": 0.0, "Yaw": -1.0}),
                                   ("ATT_RATES", {"RateP": 0, "RateQ": 0, "RateR": 0}),
                                   ("ATT_SIGMA", {"SigmaRoll": 0.01, "SigmaPitch": 0.02, "SigmaYaw": 0.1}),
@@ -225,6 +228,8 @@ def test_record_decodes_a_log_to_csv_and_stats(rec_csv, tmp_path):
     np.testing.assert_allclose(out.euler[0], [0.1, 0.0, -1.0])
     np.testing.assert_allclose(out.var[0], [0.01 ** 2, 0.02 ** 2, 0.1 ** 2], rtol=1e-6)
     np.testing.assert_allclose(out.extra["latency_s"], 0.0005, atol=2e-6)
+    # the bus time keeps its fraction (the candump log has microseconds)
+    np.testing.assert_allclose(out.extra["rx_time_s"] - EPOCH, np.array(sent) - EPOCH, atol=1.5e-6)
     st = json.loads(stats.read_text())
     assert st["input_samples"] == 10 and st["outputs"] == 5 and st["latency_us"]["p50"] == pytest.approx(500, abs=2)
 
@@ -261,3 +266,37 @@ def test_record_stops_after_idle_and_counts(tmp_path):
     st = json.loads((tmp_path / "s.json").read_text())
     assert st["frames"] == 20 and st["by_message"] == {"other": 20}
     assert len(_frames(tmp_path / "bus.log")) == 20
+
+
+def test_record_idle_ends_while_the_node_sends_heartbeats(tmp_path):
+    """--idle counts traffic, not the node's 10 Hz status-only heartbeats (ATT_STATUS with
+    Heartbeat, and a counter page) that it sends while its input is stale."""
+    import can
+    db = cp.database()
+    bits = dict({k: 0 for k in cp.STATUS_BITS}, Heartbeat=1, Stale=1)
+    status = db.encode_message("ATT_STATUS", {**bits, "AttFlags": 1, "OutIndex": 0, "Seq": 0})
+    counter = db.encode_message("ATT_COUNTERS", {"Page": 0, **{s.name: 0 for s in
+                                                              db.get_message_by_name("ATT_COUNTERS").signals
+                                                              if s.name != "Page"}}, strict=False)
+    tx = can.Bus(interface="virtual", channel="hb")
+    result = {}
+
+    def rec():
+        result["rc"] = attekf(["record", "-q", "-i", "virtual", "-c", "hb", "--idle", "0.3",
+                               "--duration", "20", "--stats", str(tmp_path / "s.json")])
+    th = threading.Thread(target=rec)
+    th.start()
+    time.sleep(0.5)
+    for k in range(10):
+        tx.send(can.Message(arbitration_id=0x555, data=bytes([k]), is_extended_id=False))
+    quiet_from = time.monotonic()
+    while th.is_alive() and time.monotonic() - quiet_from < 5.0:
+        tx.send(can.Message(arbitration_id=cp.frame_id("ATT_STATUS"), data=status, is_extended_id=False))
+        tx.send(can.Message(arbitration_id=cp.frame_id("ATT_COUNTERS"), data=counter, is_extended_id=False))
+        time.sleep(0.1)
+    ended_after = time.monotonic() - quiet_from
+    th.join(timeout=15)
+    tx.shutdown()
+    assert result["rc"] == 0 and ended_after < 2.0, ended_after
+    st = json.loads((tmp_path / "s.json").read_text())
+    assert st["by_message"]["other"] == 10 and st["heartbeats"] >= 1

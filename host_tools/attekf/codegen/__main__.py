@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 from typing import Callable, Dict, List, Tuple
 
-from . import attitude, covgen
+from . import attitude, covgen, settings_doc
 from . import constacc, radar, slam
 
 # (output directory relative to the repository root, builder)
@@ -23,6 +23,10 @@ TARGETS: List[Tuple[str, Callable[[], Dict[str, str]]]] = [
     ("firmware/models", radar.build),
     ("firmware/models", slam.build),
 ]
+
+
+# Builders of files derived from other committed files: (root -> {path from root: text}).
+DERIVED: List[Callable[[Path], Dict[str, str]]] = [settings_doc.build_doc]
 
 
 def repo_root() -> Path:
@@ -42,20 +46,20 @@ def main(argv: List[str] | None = None) -> int:
     args = ap.parse_args(argv)
     root = args.root or repo_root()
     stale = 0
-    for outdir, builder in TARGETS:
-        for name, text in builder().items():
-            path = root / outdir / name
-            if args.check:
-                old = path.read_text() if path.exists() else ""
-                if old != text:
-                    stale += 1
-                    diff = difflib.unified_diff(old.splitlines(), text.splitlines(),
-                                                str(path), "generated", lineterm="", n=1)
-                    print("\n".join(list(diff)[:40]))
-                    print(f"STALE: {path} differs from its generator (run python -m attekf.codegen)")
-            else:
-                path.write_text(text)
-                print(f"wrote {path}")
+    outputs = [(root / outdir / name, text) for outdir, builder in TARGETS for name, text in builder().items()]
+    outputs += [(root / rel, text) for builder in DERIVED for rel, text in builder(root).items()]
+    for path, text in outputs:
+        if args.check:
+            old = path.read_text() if path.exists() else ""
+            if old != text:
+                stale += 1
+                diff = difflib.unified_diff(old.splitlines(), text.splitlines(),
+                                            str(path), "generated", lineterm="", n=1)
+                print("\n".join(list(diff)[:40]))
+                print(f"STALE: {path} differs from its generator (run python -m attekf.codegen)")
+        else:
+            path.write_text(text)
+            print(f"wrote {path}")
     if args.check and not stale:
         print("generated code is current")
     return 1 if stale else 0

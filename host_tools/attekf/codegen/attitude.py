@@ -4,27 +4,35 @@ State ``x = [p q r  phi theta psi  phid thetad psid]``: body rates (rad/s), ZYX 
 angles (rad), Euler-angle rates (rad/s). Earth frame ENU (z up); the rotation
 ``R = Rz(psi) Ry(theta) Rx(phi)`` maps body to earth.
 
-Transition over one step ``dt`` with angular-acceleration noise ``w`` (rad/s, the change of
-the body rate over the step):
+Transition over one step ``dt`` with rate noise ``w`` (rad/s, the change of the body rate
+over the step), exact for a body rate that is constant over the step:
 
-    omega+    = omega + w                           (body rates: random walk)
-    Theta_m   = Theta + dt/2 * Thetadot             (angles half a step ahead)
-    Theta+    = Theta + dt * W(phi_m, theta_m) omega (angles: midpoint rule)
-    Thetadot+ = W(phi+, theta+) * omega+            (Euler rates from body rates, ZYX kinematics)
+    omega+    = omega + w                                     (body rates: random walk)
+    R(Theta+) = R(Theta) Exp([omega dt]x)                      (the rotation, composed exactly)
+    Thetadot+ = W(phi+, theta+) omega+                         (Euler rates, ZYX kinematics)
 
-The angles integrate the body rate just fused (the gyro sample of the interval ending now)
-through W evaluated half a step ahead: the midpoint rule, second order. The first-order rule
-Theta+ = Theta + dt * Thetadot lags one sample and drifts by O(dt^2 |omega|^2) per step, tens
-of degrees in a few seconds of fast tumbling at 286 Hz (docs/derivation.md, "Transition").
+Theta+ is read off the composed rotation (att_model.c). Its partial derivatives follow from
+R(Theta + dTheta) = R(Theta) Exp([E(Theta) dTheta]x) (a change of the angles is the body
+rotation E dTheta) and Exp([(u + du)]x) = Exp([u]x) Exp([Jr(u) du]x) (Jr: the right Jacobian
+of SO(3)):
+
+    d Theta+ / d Theta = W(Theta+) C^T E(Theta),    d Theta+ / d omega = W(Theta+) Jr(omega dt) dt
+
+with C = Exp([omega dt]x). The psi column of the first is e_psi exactly (E's psi column is the
+earth's vertical in body axes, which C^T carries to the new body axes and W maps back to
+psi). ``_check_transition`` compares these with central differences of the composed
+rotation at random states when the code is generated; tests/c/test_jacobians.c does the same
+for the C code.
 
 ``W`` is the body-rate to Euler-rate map; ``E = W^-1`` (Euler rates to body rates) is
-generated too. Every Jacobian below is ``sympy``'s partial derivative of these expressions
-with all nine states independent: no ratio of time derivatives appears anywhere.
+generated too. Every other Jacobian below is ``sympy``'s partial derivative with all nine
+states independent: no ratio of time derivatives appears anywhere.
 
-Trigonometry is not evaluated in the generated code. The caller passes the sines, cosines
-and ``sec(theta)`` of the angles the function is evaluated at (``att_trig_t``: for the
-transition, of the midpoint angles ``tm`` and of the advanced angles ``t``), computed once
-per step in hand-written code that also applies the gimbal-lock clamp (att_model.c).
+Trigonometry, C and Jr dt are not evaluated in the generated code. The caller passes the
+sines, cosines and ``sec(theta)`` of the angles a function is evaluated at (``att_trig_t``:
+for the transition, of the angles before the step ``t0`` and of the advanced angles ``t``)
+and the 3x3 matrices C and Jr dt, computed once per step in hand-written code that also
+applies the gimbal-lock clamp to sec(theta) (att_model.c).
 """
 
 from __future__ import annotations
@@ -51,7 +59,10 @@ NOISE = sp.Matrix([wp, wq, wr])
 # Trigonometric terms handed in by the caller (att_trig_t).
 sph, cph, sth, cth, secth = sp.symbols("sph cph sth cth secth", real=True)
 TRIG = (sph, cph, sth, cth, secth)
-TRIG_MID = sp.symbols("sphm cphm sthm cthm secthm", real=True)
+TRIG0 = sp.symbols("sph0 cph0 sth0 cth0 secth0", real=True)
+# C = Exp([omega dt]x) and JD = Jr(omega dt) dt, row-major (att_model_rotation).
+C = sp.Matrix(3, 3, sp.symbols("c0:9", real=True))
+JD = sp.Matrix(3, 3, sp.symbols("j0:9", real=True))
 mx, my, mz = sp.symbols("mx my mz", real=True)
 
 
@@ -87,25 +98,6 @@ def rot_y(a: sp.Expr) -> sp.Matrix:
 
 def rot_z(a: sp.Expr) -> sp.Matrix:
     return sp.Matrix([[sp.cos(a), -sp.sin(a), 0], [sp.sin(a), sp.cos(a), 0], [0, 0, 1]])
-
-
-def midpoint_angles() -> tuple:
-    """(phi_m, theta_m): roll and pitch half a step ahead, where W is evaluated."""
-    return phi + dt / 2 * phid, theta + dt / 2 * thetad
-
-
-def advanced_angles() -> sp.Matrix:
-    """Theta+ = Theta + dt W(phi_m, theta_m) omega (the rate before the noise)."""
-    phim, thm = midpoint_angles()
-    return sp.Matrix([phi, theta, psi]) + dt * euler_rate_map(phim, thm) * sp.Matrix([p, q, r])
-
-
-def transition() -> sp.Matrix:
-    """f(x, w, dt) as above."""
-    omega = sp.Matrix([p, q, r]) + NOISE
-    ang = advanced_angles()
-    rates = euler_rate_map(ang[0], ang[1]) * omega
-    return sp.Matrix([omega[0], omega[1], omega[2], ang[0], ang[1], ang[2], rates[0], rates[1], rates[2]])
 
 
 def accel_direction() -> sp.Matrix:
@@ -147,33 +139,21 @@ def _trig_subs(expr: sp.Expr, ph: sp.Expr, th: sp.Expr, syms: tuple = TRIG) -> s
     return expr
 
 
-@functools.lru_cache(maxsize=None)
-def transition_jacobians() -> tuple:
-    """(F, G): df/dx and df/dw at w = 0, trig replaced by att_trig_t symbols (TRIG_MID for
-    the midpoint angles, TRIG for the advanced ones).
+def _w_sym(t: tuple) -> sp.Matrix:
+    """W with the caller's trig symbols t = (sph, cph, sth, cth, secth)."""
+    s_ph, c_ph, s_th, _, sec_th = t
+    return sp.Matrix([[1, s_ph * s_th * sec_th, c_ph * s_th * sec_th], [0, c_ph, -s_ph],
+                      [0, s_ph * sec_th, c_ph * sec_th]])
 
-    Same partial derivatives as ``transition().jacobian(...)``, taken with the chain rule
-    through the advanced angles so that sympy never differentiates trig of a nested
-    expression: Thetadot+ = W(a, b) omega+ with (a, b) = (phi+, theta+), so
-    d Thetadot+/dx = W(a, b) d omega+/dx + dW omega/da d phi+/dx + dW omega/db d theta+/dx.
-    """
-    phim, thm = midpoint_angles()
-    ang = advanced_angles()
-    j_ang = ang.jacobian(X).applyfunc(lambda e: _trig_subs(e, phim, thm, TRIG_MID))
-    a, b = sp.symbols("a_adv b_adv", real=True)
-    omega = sp.Matrix([p, q, r]) + NOISE
-    rates = euler_rate_map(a, b) * omega
-    j_rates = rates.jacobian(X) + rates.diff(a) * j_ang[0, :] + rates.diff(b) * j_ang[1, :]
-    zero_noise = {wp: 0, wq: 0, wr: 0}
-    j_rates = j_rates.subs(zero_noise).applyfunc(lambda e: _trig_subs(e, a, b))
-    F = sp.zeros(9, 9)
-    F[0:3, 0:3] = sp.eye(3)
-    F[3:6, :] = j_ang
-    F[6:9, :] = j_rates
-    G = sp.zeros(9, 3)
-    G[0:3, 0:3] = sp.eye(3)
-    G[6:9, :] = rates.jacobian(NOISE).subs(zero_noise).applyfunc(lambda e: _trig_subs(e, a, b))
-    return F, G
+
+def _e_sym(t: tuple) -> sp.Matrix:
+    """E = W^-1 with the caller's trig symbols."""
+    s_ph, c_ph, s_th, c_th, _ = t
+    return sp.Matrix([[1, 0, -s_th], [0, c_ph, s_ph * c_th], [0, -s_ph, c_ph * c_th]])
+
+
+ANGLES = (3, 4, 5)  # phi, theta, psi
+F1_COLS = (0, 1, 2, 3, 4, 5)  # the columns of F1's angle rows: body rates and angles
 
 
 @functools.lru_cache(maxsize=None)
@@ -181,28 +161,119 @@ def transition_factors() -> tuple:
     """(D1, D2): F = F2 F1 with F1 = I + D1, F2 = I + D2 (docs/derivation.md, "State
     Jacobian").
 
-    F1 advances the angles and leaves every other state: its angle rows are those of F
-    (d Theta+/dx), the rest is the identity. F2 then replaces the Euler rates by
-    W(Theta+) omega: its rate rows are d Thetadot+/d(omega, phi+, theta+) (W+ and M+ of the
-    table in derivation.md) and zero in the rate columns, the rest is the identity. The
-    product is the chain rule that transition_jacobians() writes out, with fewer non-zeros
-    per factor than in F (17 + 12 against 39), which is what the covariance propagation
-    exploits (covgen.py). Trig as in transition_jacobians()."""
-    F, _ = transition_jacobians()
+    F1 advances the angles and leaves every other state: its angle rows are d Theta+/dx,
+    W(Theta+) Jr dt on the body rates, W(Theta+) C^T E(Theta) on roll and pitch, e_psi on the
+    heading and zero on the Euler rates (the composed rotation does not depend on them). F2
+    then replaces the Euler rates by W(Theta+) omega: its rate rows are
+    d Thetadot+/d(omega, phi+, theta+) and zero in the rate columns; the rest is the identity.
+    Trig of the angles before the step: TRIG0; of the advanced angles: TRIG; C and JD."""
+    w_adv = _w_sym(TRIG)
+    ang_omega = w_adv * JD
+    ang_theta = w_adv * C.T * _e_sym(TRIG0)
+    F1 = sp.eye(9)
+    F1[3:6, 0:3] = ang_omega
+    F1[3:6, 3:5] = ang_theta[:, 0:2]  # the psi column stays e_psi (module docstring)
     a, b = sp.symbols("a_adv b_adv", real=True)
     omega = sp.Matrix([p, q, r])
     rates = euler_rate_map(a, b) * omega
-    F1 = sp.eye(9)
-    F1[3:6, :] = F[3:6, :]
     F2 = sp.eye(9)
     block = sp.zeros(3, 9)
     block[:, 0:3] = rates.jacobian(omega)
     block[:, 3] = rates.diff(a)
     block[:, 4] = rates.diff(b)
     F2[6:9, :] = block.applyfunc(lambda e: _trig_subs(e, a, b))
-    if sp.expand(F2 * F1 - F) != sp.zeros(9, 9):
-        raise AssertionError("F2 F1 differs from the transition Jacobian")
     return F1 - sp.eye(9), F2 - sp.eye(9)
+
+
+@functools.lru_cache(maxsize=None)
+def transition_jacobians() -> tuple:
+    """(F, G): df/dx = F2 F1 and df/dw at w = 0 (G = [I; 0; W(Theta+)]: the noise enters the
+    body rates after the angles have moved, and the Euler rates through W(Theta+))."""
+    D1, D2 = transition_factors()
+    F = sp.expand((sp.eye(9) + D2) * (sp.eye(9) + D1))
+    G = sp.zeros(9, 3)
+    G[0:3, 0:3] = sp.eye(3)
+    G[6:9, :] = _w_sym(TRIG)
+    return F, G
+
+
+def f1_pattern() -> list:
+    """(row, column) of D1's entries: every angle row on F1_COLS (the heading column is zero
+    in the Euler-angle coordinates, but an entry of the pattern: the covariance kernels take
+    any angle rows of this shape)."""
+    return [(i, j) for i in ANGLES for j in F1_COLS]
+
+
+# ---- numerical check of the transition and its Jacobian ------------------------------------------
+def _rot(ph: float, th: float, ps: float):
+    import numpy as np
+
+    cx, sx, cy, sy, cz, sz = np.cos(ph), np.sin(ph), np.cos(th), np.sin(th), np.cos(ps), np.sin(ps)
+    return (np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]]) @ np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+            @ np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]]))
+
+
+def _exp(u):
+    import numpy as np
+
+    th = float(np.linalg.norm(u))
+    U = np.array([[0, -u[2], u[1]], [u[2], 0, -u[0]], [-u[1], u[0], 0]])
+    if th < 1e-12:
+        return np.eye(3) + U
+    return np.eye(3) + np.sin(th) / th * U + (1 - np.cos(th)) / th ** 2 * U @ U
+
+
+def _right_jacobian(u):
+    import numpy as np
+
+    th = float(np.linalg.norm(u))
+    U = np.array([[0, -u[2], u[1]], [u[2], 0, -u[0]], [-u[1], u[0], 0]])
+    return np.eye(3) - (1 - np.cos(th)) / th ** 2 * U + (th - np.sin(th)) / th ** 3 * U @ U
+
+
+def _angles_after(x, h):
+    """Theta+ of the composed rotation, continued from Theta (psi and phi unwrapped)."""
+    import numpy as np
+
+    R = _rot(x[3], x[4], x[5]) @ _exp(np.array(x[0:3]) * h)
+    ang = np.array([np.arctan2(R[2, 1], R[2, 2]), np.arctan2(-R[2, 0], np.hypot(R[2, 1], R[2, 2])),
+                    np.arctan2(R[1, 0], R[0, 0])])
+    return ang + 2 * np.pi * np.round((np.array(x[3:6]) - ang) / (2 * np.pi))
+
+
+def _check_transition() -> None:
+    """The angle rows of F2 F1 equal central differences of the composed rotation, and the
+    Euler-rate rows those of W(Theta+) omega, at random states away from +-90 deg pitch."""
+    import random
+
+    import numpy as np
+
+    D1, D2 = transition_factors()
+    F = sp.lambdify([list(X), dt, list(TRIG0), list(TRIG), list(C), list(JD)], (sp.eye(9) + D2) * (sp.eye(9) + D1),
+                   "numpy")
+    rng = random.Random(11)
+    for _ in range(20):
+        x = [rng.uniform(-3, 3) for _ in range(3)] + [rng.uniform(-3, 3), rng.uniform(-1.3, 1.3),
+                                                       rng.uniform(-3, 3)] + [0.0, 0.0, 0.0]
+        h = rng.uniform(1e-3, 0.1)
+
+        def full(xx):
+            ang = _angles_after(xx, h)
+            W = np.array(euler_rate_map(ang[0], ang[1]).evalf(), dtype=float)
+            return np.concatenate([xx[0:3], ang, W @ np.array(xx[0:3])])
+
+        ang = _angles_after(x, h)
+        trig = lambda a_, b_: (np.sin(a_), np.cos(a_), np.sin(b_), np.cos(b_), 1 / np.cos(b_))  # noqa: E731
+        u = np.array(x[0:3]) * h
+        got = np.array(F(x, h, trig(x[3], x[4]), trig(ang[0], ang[1]), _exp(u).ravel(), (_right_jacobian(u) * h).ravel()),
+                       dtype=float)
+        for j in range(9):
+            e = 1e-6
+            xp, xm = list(x), list(x)
+            xp[j] += e
+            xm[j] -= e
+            col = (full(xp) - full(xm)) / (2 * e)
+            assert np.allclose(got[:, j], col, rtol=1e-6, atol=1e-6), (j, got[:, j], col)
 
 
 def _index(i: int) -> str:
@@ -216,13 +287,15 @@ TRIG_PROLOGUE = [
     "const ekf_scalar_t cth = t->cth;",
     "const ekf_scalar_t secth = t->secth;",
 ]
-TRIG_MID_PROLOGUE = [
-    "const ekf_scalar_t sphm = tm->sphi;",
-    "const ekf_scalar_t cphm = tm->cphi;",
-    "const ekf_scalar_t sthm = tm->sth;",
-    "const ekf_scalar_t cthm = tm->cth;",
-    "const ekf_scalar_t secthm = tm->secth;",
+TRIG0_PROLOGUE = [
+    "const ekf_scalar_t sph0 = tb->sphi;",
+    "const ekf_scalar_t cph0 = tb->cphi;",
+    "const ekf_scalar_t sth0 = tb->sth;",
+    "const ekf_scalar_t cth0 = tb->cth;",
+    "const ekf_scalar_t secth0 = tb->secth;",
 ]
+ROT_PROLOGUE = [f"const ekf_scalar_t c{k} = rot[{k}];" for k in range(9)] + [
+    f"const ekf_scalar_t j{k} = jd[{k}];" for k in range(9)]
 STATE_PROLOGUE = [f"const ekf_scalar_t {s.name} = x[{_index(i)}];" for i, s in enumerate(X)]
 
 # Typical magnitudes of the generated code's inputs, for the order of the factors of each
@@ -230,8 +303,10 @@ STATE_PROLOGUE = [f"const ekf_scalar_t {s.name} = x[{_index(i)}];" for i, s in e
 # relative to the result): sec(theta) up to 48 at the default gimbal limit, rates a few
 # rad/s (up to gyro_range), sines and cosines below 1, steps of milliseconds, the field in uT.
 SCALES = {
-    **{name: 10.0 for name in ("secth", "secthm")},
-    **{name: 0.7 for name in ("sph", "cph", "sth", "cth", "sphm", "cphm", "sthm", "cthm")},
+    **{name: 10.0 for name in ("secth", "secth0")},
+    **{name: 0.7 for name in ("sph", "cph", "sth", "cth", "sph0", "cph0", "sth0", "cth0")},
+    **{f"c{k}": 0.7 for k in range(9)},
+    **{f"j{k}": 0.005 for k in range(9)},
     **{name: 5.0 for name in ("p", "q", "r", "phid", "thetad", "psid")},
     **{name: 1.5 for name in ("phi", "theta", "psi")},
     "dt": 0.005,
@@ -239,44 +314,12 @@ SCALES = {
 }
 
 
-def _check_against_transition(F: sp.Matrix, G: sp.Matrix) -> None:
-    """The chain-rule Jacobians equal sympy's direct derivatives of transition() (checked
-    numerically at a few random states; the direct symbolic form is too slow to simplify)."""
-    import random
-
-    f = transition()
-    direct = sp.lambdify([X, NOISE, dt], (f.jacobian(X), f.jacobian(NOISE)), ["math", "mpmath"])
-    rng = random.Random(7)
-    for _ in range(5):
-        xs = [rng.uniform(-2, 2) for _ in range(9)]
-        h = rng.uniform(1e-3, 5e-2)
-        vals = {sym: v for sym, v in zip(X, xs)}
-        vals[dt] = h
-        phm, thm_ = xs[3] + h / 2 * xs[6], xs[4] + h / 2 * xs[7]
-        Wm = euler_rate_map(phm, thm_)
-        adv = [xs[3 + k] + h * sum(float(Wm[k, j]) * xs[j] for j in range(3)) for k in range(3)]
-        for syms, (ph_, th_) in ((TRIG_MID, (phm, thm_)), (TRIG, (adv[0], adv[1]))):
-            c = math.cos(th_)
-            vals.update(dict(zip(syms, (math.sin(ph_), math.cos(ph_), math.sin(th_), c, 1 / c))))
-        Fd, Gd = direct(xs, [0.0, 0.0, 0.0], h)
-        for mine, ref in ((F, Fd), (G, Gd)):
-            got = mine.subs(vals)
-            for i in range(got.rows):
-                for j in range(got.cols):
-                    assert abs(float(got[i, j]) - float(ref[i, j])) < 1e-9 * (1 + abs(float(ref[i, j]))), (i, j)
-
-
 def build() -> Dict[str, str]:
+    _check_transition()
     F, G = transition_jacobians()
-    _check_against_transition(F, G)
-    D = F - sp.eye(9)
-    d_entries = sparse_entries(D)
-    g_entries = sparse_entries(G)
     # The noise Jacobian is [I; 0; W(phi+, theta+)]: only its Euler-rate block depends on
-    # the state, the rest is identity and is applied as such by att_model.c.
+    # the state, the rest is identity and is applied as such by att_cov.
     g_block = [(i, j, G[i, j]) for i in range(6, 9) for j in range(3)]
-    assert all(e == 1 for i, j, e in g_entries if i < 6 and i == j)
-    assert all(i >= 6 or i == j for i, j, e in g_entries)
 
     W = euler_rate_map(phi, theta)
     Einv = body_rate_map(phi, theta)
@@ -317,22 +360,6 @@ def build() -> Dict[str, str]:
                 "const ekf_scalar_t psid = e[2];",
             ],
             outputs=[(f"out[{k}]", _trig_subs(body[k], phi, theta)) for k in range(3)],
-        )
-    )
-    fns.append(
-        CFunction(
-            scales=SCALES,
-            name="att_gen_transition_jacobian",
-            doc="Non-zero entries of D = F - I, F = df/dx, in the order of att_gen_f_pattern.\n"
-            "x: state before the step; dt: step (s); tm: trigonometry of the midpoint angles\n"
-            "(phi + dt/2 phid, theta + dt/2 thetad); t: of the advanced angles.",
-            params="const att_trig_t *tm, const att_trig_t *t, const ekf_scalar_t x[ATT_N], ekf_scalar_t dt, "
-            "ekf_scalar_t d[ATT_GEN_F_NNZ]",
-            prologue=TRIG_MID_PROLOGUE + TRIG_PROLOGUE + STATE_PROLOGUE,
-            outputs=[(f"d[{k}]", sp.horner(e, wrt=dt)) for k, (_, _, e) in enumerate(d_entries)],
-            # no shared dt^2 / 2 (about 5e-5): rounded on its own it lost 20 bits of the
-            # Euler-rate rows in fixed point (docs/fixed_point.md, "Accuracy")
-            cse_ignore=[dt],
         )
     )
     fns.append(
@@ -388,51 +415,40 @@ def build() -> Dict[str, str]:
 
     # The factors F = F2 F1 for the covariance propagation (transition_factors).
     D1, D2 = transition_factors()
-    d1_entries = sparse_entries(D1)
+    d1_entries = [(i, j, D1[i, j]) for i, j in f1_pattern()]
     d2_entries = sparse_entries(D2)
-    assert [(i, j) for i, j, _ in d1_entries] == [(i, j) for i, j, _ in d_entries if i < 6], \
-        "F1's rows are the angle rows of F"
     fns.append(
         CFunction(
             scales=SCALES,
             name="att_gen_transition_factors",
             doc="F = F2 F1, F1 = I + D1, F2 = I + D2 (docs/derivation.md, \"State Jacobian\"): d1 the values\n"
-            "of D1 (the angle rows of D) in the order of att_gen_f1_pattern, d2 those of D2 (the\n"
-            "Euler-rate rows: W+ on the body rates, M+ on roll and pitch, -1 on the rate itself) in\n"
-            "the order of att_gen_f2_pattern. Arguments as for att_gen_transition_jacobian.",
-            params="const att_trig_t *tm, const att_trig_t *t, const ekf_scalar_t x[ATT_N], ekf_scalar_t dt, "
-            "ekf_scalar_t d1[ATT_GEN_F1_NNZ], ekf_scalar_t d2[ATT_GEN_F2_NNZ]",
-            prologue=TRIG_MID_PROLOGUE + TRIG_PROLOGUE + STATE_PROLOGUE,
-            outputs=[(f"d1[{k}]", sp.horner(e, wrt=dt)) for k, (_, _, e) in enumerate(d1_entries)]
+            "of D1 (the angle rows: W+ Jr dt on the body rates, W+ C^T E - I on the angles, zero in\n"
+            "the heading column) in the order of att_gen_f1_pattern, d2 those of D2 (the Euler-rate\n"
+            "rows: W+ on the body rates, M+ on roll and pitch, -1 on the rate itself) in the order of\n"
+            "att_gen_f2_pattern. x: state before the step (its body rates); tb: trigonometry of the\n"
+            "angles before the step, t: of the advanced angles; rot = C = Exp([w dt]x) and\n"
+            "jd = Jr(w dt) dt, row-major (att_model_rotation).",
+            params="const att_trig_t *tb, const att_trig_t *t, const ekf_scalar_t x[ATT_N], const ekf_scalar_t rot[9], "
+            "const ekf_scalar_t jd[9], ekf_scalar_t d1[ATT_GEN_F1_NNZ], ekf_scalar_t d2[ATT_GEN_F2_NNZ]",
+            prologue=TRIG0_PROLOGUE + TRIG_PROLOGUE + STATE_PROLOGUE + ROT_PROLOGUE,
+            outputs=[(f"d1[{k}]", e) for k, (_, _, e) in enumerate(d1_entries)]
             + [(f"d2[{k}]", e) for k, (_, _, e) in enumerate(d2_entries)],
-            cse_ignore=[dt],
         )
     )
 
-    pattern = ",\n    ".join(f"{{{_index(i)}, {_index(j)}}}" for i, j, _ in d_entries)
-    header_extra = (
-        '#include "att_defs.h"\n\n'
-        "/* Number of structurally non-zero entries of D = F - I. */\n"
-        f"#define ATT_GEN_F_NNZ {len(d_entries)}\n\n"
-        "/* (row, column) of each entry of D, sorted by row: the pattern for ekf_cov_propagate. */\n"
-        "extern const ekf_nz_t att_gen_f_pattern[ATT_GEN_F_NNZ];"
-    )
-    source_extra = f"const ekf_nz_t att_gen_f_pattern[ATT_GEN_F_NNZ] = {{\n    {pattern}\n}};"
+    header_extra = '#include "att_defs.h"'
+    source_extra = ""
     for name, entries, what in (("f1", d1_entries, "the angle rows"), ("f2", d2_entries, "the Euler-rate rows")):
         pat = ", ".join(f"{{{_index(i)}, {_index(j)}}}" for i, j, _ in entries)
         header_extra += (
-            f"\n\n/* Number of structurally non-zero entries of D{name[1]} = F{name[1]} - I ({what}), and their\n"
+            f"\n\n/* Number of entries of D{name[1]} = F{name[1]} - I ({what}), and their\n"
             f" * (row, column), sorted by row (att_gen_transition_factors). */\n"
             f"#define ATT_GEN_{name.upper()}_NNZ {len(entries)}\n"
             f"extern const ekf_nz_t att_gen_{name}_pattern[ATT_GEN_{name.upper()}_NNZ];"
         )
         source_extra += f"\n\nconst ekf_nz_t att_gen_{name}_pattern[ATT_GEN_{name.upper()}_NNZ] = {{{pat}}};"
-    # P <- F P F^T unrolled for this pattern (perf: docs/performance.md)
-    prop_decl, prop_def = covprop.emit("att_gen_cov_propagate", 9, "ATT_N", "ATT_GEN_F_NNZ",
-                                       [(i, j) for i, j, _ in d_entries], _index, "att_gen_f_pattern")
-    header_extra += "\n\n" + prop_decl
-    source_extra += "\n\n" + prop_def
-    # the same for each factor (the reference covariance implementation, att_cov_ref.c)
+    # P <- F P F^T unrolled for each factor (the reference covariance implementation,
+    # att_cov_ref.c, which the tests compare the shipped ones with)
     for name, entries in (("f1", d1_entries), ("f2", d2_entries)):
         decl, defn = covprop.emit(f"att_gen_cov_propagate_{name}", 9, "ATT_N", f"ATT_GEN_{name.upper()}_NNZ",
                                   [(i, j) for i, j, _ in entries], _index, f"att_gen_{name}_pattern")

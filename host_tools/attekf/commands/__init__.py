@@ -49,6 +49,13 @@ def run_command(command: str, body: Callable[[], int]) -> int:
     except (NativeError, ProtocolError) as exc:
         _say(command, f"error: {' '.join(str(exc).split())}")
         return 1
+    except ModuleNotFoundError as exc:   # an optional package a part of the tools needs
+        from ..extras import PACKAGES, message
+        root = (exc.name or "").split(".")[0]
+        if root not in PACKAGES:
+            raise
+        _say(command, f"error: {message(root, f'attekf {command}')}")
+        return 2
     except BrokenPipeError:
         # the reader of stdout went away (attekf eval ... | head): no traceback at exit
         try:
@@ -116,6 +123,7 @@ nonneg_float = _checked(float, lambda v: math.isfinite(v) and v >= 0, "number >=
 positive_float = _checked(float, lambda v: math.isfinite(v) and v > 0, "number > 0")
 nonneg_int = _checked(int, lambda v: v >= 0, "integer >= 0")
 positive_int = _checked(int, lambda v: v >= 1, "integer >= 1")
+fraction = _checked(float, lambda v: 0.0 <= v < 1.0, "fraction in [0, 1)")
 
 
 def parse_pair(item: str, what: str) -> Tuple[str, float]:
@@ -148,3 +156,51 @@ def check_settings(scalar: str, settings: Dict[str, float], source: str = "") ->
             raise native.SettingsError(f"{source}: {exc}") from None
         raise
 
+
+
+# ---------------------------------------------------------------------------------------------
+# Estimator settings options (eval, run)
+# ---------------------------------------------------------------------------------------------
+SCALAR_HELP = ("which C build runs: float (what runs on the microcontroller, default), double, or "
+               "fixed (Q-format fixed point)")
+
+
+def add_settings_arguments(p) -> None:
+    """--scalar, --set NAME=VALUE, --settings FILE, --list-settings."""
+    p.add_argument("--scalar", choices=("float", "double", "fixed"), default="float", help=SCALAR_HELP)
+    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                   help="change an estimator setting (repeatable; see --list-settings)")
+    p.add_argument("--settings", metavar="FILE",
+                   help="estimator settings from a TOML (.toml) or JSON file of {name: value}")
+    p.add_argument("--list-settings", action="store_true",
+                   help="print the estimator's settings (unit, range, default, meaning) and exit")
+
+
+def parse_settings(args) -> Dict[str, float]:
+    """--settings FILE then --set NAME=VALUE (later wins); each checked by the C library now,
+    so a refused setting fails before any work (exit 2, naming its origin)."""
+    from ..io import read_settings_json
+    settings: Dict[str, float] = {}
+    if args.settings:
+        from_file = read_settings_json(args.settings)
+        if not args.list_settings:
+            check_settings(args.scalar, from_file, args.settings)
+        settings.update(from_file)
+    for item in args.set:
+        name, value = parse_pair(item, "--set")
+        settings[name] = value
+    if settings and not args.list_settings:
+        check_settings(args.scalar, settings)
+    return settings
+
+
+def list_settings(scalar: str) -> int:
+    """Prints every setting of the C library: name, default, unit, range, meaning."""
+    from ..native import setting_info
+    info = setting_info(scalar)
+    w = max(len(n) for n in info)
+    print(f"estimator settings ({scalar} build): name, default, unit, accepted range, meaning")
+    for name, row in info.items():
+        lo, hi = row["range"]
+        print(f"  {name.ljust(w)}  {row['default']!s:>14}  {row['unit']:<16} [{lo:g}, {hi:g}]  {row['help']}")
+    return 0

@@ -11,7 +11,7 @@ import sys
 from typing import Dict
 
 from .. import __version__
-from . import check_settings, parse_pair, positive_int
+from . import check_settings, fraction, nonneg_int, parse_pair, positive_float, positive_int
 from ..errors import InputError, Interrupted, UsageError
 from ..io import read_settings_json
 
@@ -33,9 +33,22 @@ writes the tables for docs/accuracy.md. Output paths are checked before the run;
 written under temporary names and renamed at the end (Ctrl-C leaves none).
 Details and the latest numbers: docs/accuracy.md.
 
-methods (--methods, comma list of keys or families; default: the ones marked *):
+Every method is scored on the same trials: 9D is not run on a trial without a usable
+magnetometer (no imu_mag, or every row NaN; 6D still is), and a trial a method gives no score
+on is left out of every method's mean of that dimension; the table says which and why.
+
+Other rates and missing samples (every method, the same recordings; docs/host_tools.md):
+--decimate K averages each sensor over K samples (truth and movement at each block's end);
+--resample HZ goes to any rate (the integral of every sensor interpolated, so no rotation is
+lost; truth by slerp); --drop P removes a random fraction P of the samples (--seed S): our
+filter gets each kept sample's time step, the fixed-rate methods the nominal grid with each
+missing sample replaced by the next kept one (the same gyroscope integral).
+
+methods (--methods, comma list of keys, or names without -9d/-6d for both dimensions;
+default: the ones marked *):
   ours-9d* ours-6d* vqf-9d* vqf-6d* fusion-9d* fusion-6d* madgwick-9d* mahony-9d*
   vqf-online-9d vqf-online-6d fusion-bare-9d fusion-bare-6d madgwick-6d mahony-6d
+  (ours = ours-9d,ours-6d; vqf = vqf-9d,vqf-6d (offline); vqf-online; fusion; fusion-bare; ...)
   --ablation adds our filter with robustness features switched off (ours-9d:no-mag-gate ...)
   --oracle-bias adds our filter with the gyro bias taken from the truth (ANALYSIS ONLY)
   --variant NAME:SET=V,SET=V adds our filter with other settings (9D and 6D)
@@ -45,6 +58,8 @@ examples:
   attekf bench --trials 02,15 --methods ours,vqf
   attekf bench --methods ours --ablation --oracle-bias --jobs 2 --out out/ablation
   attekf bench --methods ours-9d --set accel_noise=0.3 --variant lowq:rate_walk=1.0
+  attekf bench --methods ours,vqf-online --decimate 3 --jobs 2        (95.2 Hz)
+  attekf bench --methods ours,vqf-online --resample 1000 --drop 0.05 --seed 1
 """
 
 
@@ -57,8 +72,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="comma list of trial names, name prefixes (e.g. 02,15) or glob patterns")
     p.add_argument("--limit", type=positive_int, metavar="N", help="only the first N trials (after --trials)")
     p.add_argument("--methods", metavar="LIST", default="default",
-                   help="comma list of method keys or families (ours, vqf, fusion, madgwick, mahony), "
-                        "9d, 6d, default, all (default: default)")
+                   help="comma list of method keys, or names without -9d/-6d for both dimensions (ours, vqf, "
+                        "vqf-online, fusion, fusion-bare, madgwick, mahony), 9d, 6d, default, all (default: default)")
     p.add_argument("--list-methods", action="store_true", help="print the methods and exit")
     p.add_argument("--jobs", "-j", type=positive_int, default=os.cpu_count() or 1, metavar="N",
                    help="worker processes over (trial, method) pairs (default: CPU count, %(default)s)")
@@ -71,14 +86,31 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ablation", action="store_true",
                    help="also run our filter with each robustness feature off (docs/accuracy.md)")
     p.add_argument("--oracle-bias", action="store_true",
-                   help="also run our filter with the gyro bias estimated from the truth's rest "
-                        "phases removed (ANALYSIS ONLY: the cost of having no bias state)")
+                   help="also run our filter with the gyro bias removed, taken as the mean gyro over the "
+                        "samples at rest by the truth's angular rate (below 2 deg/s for at least 1 s; ANALYSIS "
+                        "ONLY: what an exact offset would be worth)")
     p.add_argument("--variant", action="append", default=[], metavar="NAME:SET=V[,SET=V]",
                    help="also run our filter (9D and 6D) with these settings changed; repeatable")
     p.add_argument("--fusion-set", action="append", default=[], metavar="NAME=VALUE",
                    help="change a Fusion setting (gain, gyroscope_range, acceleration_rejection, "
                         "magnetic_rejection, rejection_timeout [s], bias_stationary_threshold "
                         "[deg/s], bias_stationary_period [s]); default: x-io's example values")
+    rate = p.add_mutually_exclusive_group()
+    rate.add_argument("--decimate", type=positive_int, default=1, metavar="K",
+                      help="score at 1/K of the rate: each sensor the mean of K consecutive samples, truth and "
+                           "movement mask of each block's last sample (default 1)")
+    rate.add_argument("--resample", type=positive_float, metavar="HZ",
+                      help="score at HZ (up or down): each sensor's integral interpolated by a cubic through its "
+                           "exact values and differenced over the new intervals, truth by slerp")
+    p.add_argument("--drop", type=fraction, default=0.0, metavar="P",
+                   help="remove a random fraction P (0 <= P < 1) of the samples, after any rate change; ours gets "
+                        "each kept sample's time step, the fixed-rate methods the next kept sample in the gap")
+    p.add_argument("--drop-gyro", choices=("mean", "own"), default="mean",
+                   help="gyroscope of a sample after dropped ones: mean = the mean rate over its whole interval "
+                        "(an integrating sensor, the rotation kept; default), own = its own reading (a rate "
+                        "sensor whose missed reads are lost)")
+    p.add_argument("--seed", type=nonneg_int, default=0, metavar="S",
+                   help="random seed of --drop (default %(default)s)")
     p.add_argument("--init-samples", type=positive_int, default=10, metavar="N",
                    help="samples averaged for the common initial attitude of Madgwick, Mahony and "
                         "Fusion (default 10, our filter's align_samples)")
@@ -87,6 +119,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--markdown", metavar="FILE", help="write the tables as Markdown (docs/accuracy.md)")
     p.add_argument("--no-plot", action="store_true", help="no plot")
     p.add_argument("--per-trial", action="store_true", help="also print the per-trial total RMSE table")
+
+
+def transform_from_args(args):
+    """The Transform of --decimate / --resample / --drop / --seed."""
+    from ..transform import Transform
+    return Transform(decimate=args.decimate, resample_hz=args.resample, drop=args.drop, seed=args.seed,
+                     drop_gyro=args.drop_gyro)
 
 
 def _parse_settings(args) -> Dict[str, float]:
@@ -166,7 +205,8 @@ def run(args: argparse.Namespace) -> int:
     from .. import bench
 
     cfg = bench.RunConfig(scalar=args.scalar, settings=_parse_settings(args),
-                          init_samples=args.init_samples, variants=_parse_variants(args.variant))
+                          init_samples=args.init_samples, variants=_parse_variants(args.variant),
+                          transform=transform_from_args(args))
     for item in args.fusion_set:
         k, v = parse_pair(item, "--fusion-set")
         if k not in bench.FUSION_SETTINGS:
@@ -212,8 +252,10 @@ def run(args: argparse.Namespace) -> int:
             rec = bench.read_recording(p)
             if not rec.has_truth:
                 raise InputError(f"{p}: no ground truth (opt_quat): nothing to score")
-            if rec.mag is None and any(not m.six_d for m in methods):
-                raise InputError(f"{p}: no magnetometer: run 6D methods only (--methods 6d)")
+            try:
+                cfg.transform.apply(rec)       # a recording too short for it: said now, not in a worker
+            except ValueError as exc:
+                raise InputError(str(exc)) from None      # names the file
         return _bench(args, paths, methods, cfg, out, plan)
 
 

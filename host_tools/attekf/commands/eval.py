@@ -11,9 +11,10 @@ import sys
 from typing import Dict, List
 
 from .. import __version__
-from . import check_settings, finite_float, parse_pair
+from . import add_settings_arguments, finite_float, list_settings, parse_settings
 from ..errors import InputError, Interrupted, UsageError
-from ..io import read_output_csv, read_recording, read_settings_json, write_output_csv
+from ..extras import require
+from ..io import read_output_csv, read_recording
 
 NAME = "eval"
 HELP = "evaluate the estimator against ground truth (table, JSON, plots)"
@@ -27,7 +28,7 @@ evaluates every .csv/.hdf5/.h5 recording in it, with a per-trial and a mean tabl
 Outputs: the table on stdout; with --out DIR also DIR/table.txt, DIR/results.json and one
 plot per trial DIR/<trial>.png (Euler angles vs truth; errors with the filter's 3-sigma
 bounds). Without magnetometer (--no-mag, or none in the file) the scoring is 6D: the mean
-heading offset is removed first (docs/host_tools.md). Output paths are checked before the
+heading offset is removed first. Output paths are checked before the
 work starts; the files are written under temporary names and renamed together at the end,
 so an error or Ctrl-C leaves none of them (and earlier files of the same names unchanged).
 
@@ -47,16 +48,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="recording files (.csv, .hdf5, .h5) or directories of them")
     p.add_argument("--output-csv", metavar="FILE",
                    help="score this recorded estimator output instead of running the estimator "
-                        "(one recording only; format in docs/host_tools.md)")
+                        "(one recording only; the format `attekf run` writes, see attekf run --help)")
     p.add_argument("--time-offset", type=finite_float, default=0.0, metavar="S",
                    help="added to the output file's t_s before matching it to samples (default 0)")
-    p.add_argument("--scalar", choices=("float", "double", "fixed"), default="float",
-                   help="which C build runs: float (what ships, default), double, or fixed "
-                        "(Q-format fixed point, docs/fixed_point.md)")
-    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                   help="change an estimator setting (repeatable; see --list-settings)")
-    p.add_argument("--settings", metavar="FILE.json", help="estimator settings from a JSON object {name: value}")
-    p.add_argument("--list-settings", action="store_true", help="print the estimator's settings and exit")
+    add_settings_arguments(p)
     p.add_argument("--no-mag", action="store_true",
                    help="run without the magnetometer and score 6D (mean heading offset removed)")
     p.add_argument("--out", metavar="DIR", help="write table.txt, results.json and plots into DIR")
@@ -87,44 +82,19 @@ def _collect(inputs: List[str]) -> List[str]:
     return files
 
 
-def _parse_settings(args) -> Dict[str, float]:
-    """--settings FILE then --set NAME=VALUE (later wins); each checked by the C library now,
-    so a refused setting fails before any work (exit 2, naming its origin)."""
-    settings: Dict[str, float] = {}
-    if args.settings:
-        from_file = read_settings_json(args.settings)
-        if not args.list_settings:
-            check_settings(args.scalar, from_file, args.settings)
-        settings.update(from_file)
-    for item in args.set:
-        name, value = parse_pair(item, "--set")
-        settings[name] = value
-    if settings and not args.list_settings:
-        check_settings(args.scalar, settings)
-    return settings
-
-
-def _list_settings(scalar: str) -> int:
-    from ..native import setting_info
-    info = setting_info(scalar)
-    w = max(len(n) for n in info)
-    print(f"estimator settings ({scalar} build), defaults from att_default_settings:")
-    for name, row in info.items():
-        print(f"  {name.ljust(w)}  {row['default']!s:>14}  {row['unit']:<14} {row['help']}")
-    return 0
-
-
 def run(args: argparse.Namespace) -> int:
     if args.list_settings:
-        return _list_settings(args.scalar)
+        return list_settings(args.scalar)
     if not args.inputs:
         raise UsageError("no recording given (see --help)")
     if args.save_output and not args.out:
         raise UsageError("--save-output needs --out DIR")
-    settings = _parse_settings(args)
+    settings = parse_settings(args)
     files = _collect(args.inputs)
     if args.output_csv and len(files) != 1:
         raise UsageError(f"--output-csv scores one recording, {len(files)} given")
+    if args.out and not args.no_plot:
+        require("matplotlib", "the plots of attekf eval (or --no-plot)", "plots")
     from ..outputs import Outputs
     with Outputs() as out:
         out.inputs(files + [args.output_csv, args.settings])
@@ -187,13 +157,15 @@ def _evaluate(args, files: List[str], settings: Dict[str, float], out, plan) -> 
                     tr, res = evaluate_run(rec, settings, scalar=args.scalar, use_mag=not args.no_mag,
                                            progress=pb.update)
                 if args.save_output:
-                    write_output_csv(out.temp(plan["saved"][name]), rec.t, tr.euler_est,
-                                     tr.var_euler, res.flags, res.status[:, 0])
+                    from ..output_file import write_result_csv
+                    with bar(len(rec), f"writing {name}_output.csv", args.quiet, unit="row") as pb:
+                        write_result_csv(out.temp(plan["saved"][name]), res, progress=pb.update)
             tr.name = name
             trials.append(tr)
             if name in plan["plots"]:
-                from ..plots import plot_trial
-                plot_trial(tr, out.temp(plan["plots"][name]))
+                from ..plots import PLOT_STEPS, plot_trial
+                with bar(PLOT_STEPS, f"plotting {name}", args.quiet, unit="step") as pb:
+                    plot_trial(tr, out.temp(plan["plots"][name]), progress=pb.update)
     except KeyboardInterrupt:
         raise Interrupted(f"after {len(trials)} of {len(files)} recording(s): nothing written "
                           "(outputs are only put in place when complete)") from None
@@ -239,7 +211,7 @@ def _notes(trials) -> List[str]:
         c = tr.counts
         parts = []
         if not tr.has_truth:
-            parts.append("no ground truth: nothing scored")
+            parts.append("no ground truth: nothing scored (attekf run writes the estimator's output)")
         for key, label in (("movement_without_truth", "movement samples without truth"),
                            ("movement_without_estimate", "movement samples without estimate"),
                            ("refused", "samples refused by the estimator"),

@@ -20,13 +20,14 @@ HELP = "log a CAN bus (python-can loggers) and decode the estimator's outputs to
 DESCRIPTION = """\
 Listens on a python-can interface (or reads a CAN log with --from-log), writes every frame to a
 log file (-o; format from the extension: .log candump, .asc, .blf, ...), and decodes with
-hal/can/attekf.dbc:
+the node's CAN database (attekf.dbc, in the package):
   --csv FILE         the node's attitude outputs (ATT_EULER, ATT_RATES, ATT_SIGMA, ATT_STATUS),
-                     one row per output, in the estimator-output CSV layout of docs/host_tools.md:
+                     one row per output, in the estimator-output CSV layout (attekf run --help):
                      t_s (the time of the input sample the output includes, from its IMU_SYNC
                      frame when that was on the bus, else the bus time), roll/pitch/yaw_rad,
                      var_*_rad2 (sigma^2), flags (ATT_FLAG_*), and seq, out_index, node_flags
-                     (HAL_FLAG_*), rate_*_rad_s, rx_time_s, latency_s (IMU_SYNC -> ATT_EULER on
+                     (APP_FLAG_*), rate_*_rad_s, rx_time_s (the bus timestamp, all its digits),
+                     latency_s (IMU_SYNC -> ATT_EULER on
                      the bus; empty if unknown); angles, variances and rates are empty while
                      the node reports Aligned clear (it sends zeros then);
   --inputs-csv FILE  the IMU samples seen on the bus, as a recording CSV (samples without gyro or
@@ -34,15 +35,15 @@ hal/can/attekf.dbc:
 --stats writes counts, sequence gaps of inputs and outputs, the bus latency percentiles and the
 node's last published counters as JSON.
 
-Listening stops on Ctrl-C / SIGTERM, after --duration, after --idle seconds without frames,
-or after --count frames; the outputs are then written. Receive errors (interface going down)
+Listening stops on Ctrl-C / SIGTERM, after --duration, after --idle seconds without traffic
+(the node's status-only heartbeats do not count), or after --count frames; the outputs are then written. Receive errors (interface going down)
 are counted and listening goes on. With --from-log, Ctrl-C abandons the run instead. Every
 output is written under a temporary name and renamed when complete, so an interrupted or
 failed run leaves none (and an interface that cannot be opened leaves no empty -o file).
 
 python-can's 'virtual' interface connects only buses inside one process: nothing another
 program (attekf replay, attekf-node) sends reaches `attekf record -i virtual`. Between
-processes use socketcan (vcan0: docs/hil.md).
+processes use socketcan (a vcan0 interface: ip link add vcan0 type vcan; ip link set vcan0 up).
 
 examples:
   attekf record -i socketcan -c vcan0 -o bus.log --csv att.csv
@@ -64,7 +65,9 @@ def add_arguments(p) -> None:
     p.add_argument("--stats", metavar="FILE", help="counts, gaps, latency and node counters as JSON")
     p.add_argument("--duration", type=nonneg_float, default=0.0, help="stop after this many seconds")
     p.add_argument("--idle", type=nonneg_float, default=0.0,
-                   help="stop after this many seconds without a frame (once one was seen)")
+                   help="stop after this many seconds without traffic (once some was seen): the "
+                        "node's status-only heartbeats and counter pages (ATT_STATUS, ATT_COUNTERS "
+                        "while its input is stale) do not count")
     p.add_argument("--count", type=nonneg_int, default=0, help="stop after this many frames")
     p.add_argument("--rcvbuf", type=nonneg_int, default=8 * 1024 * 1024,
                    help="socketcan: receive buffer in bytes (default 8 MiB; bursts overflow the "
@@ -180,7 +183,8 @@ class Recorder:
             "latency_s": self.latencies_s(),
         }
         write_output_csv(path, t, euler, var=sigma ** 2,
-                         flags=np.array([r.att_flags for r in rows], dtype=np.int64), extra=extra)
+                         flags=np.array([r.att_flags for r in rows], dtype=np.int64), extra=extra,
+                         full_precision=("rx_time_s",))
         return what
 
     def write_inputs_csv(self, path: str) -> int:
@@ -258,11 +262,16 @@ def _frames_generic(bus, stop_flag: List[bool]):
 def record_bus(rec: Recorder, bus, logger, duration: float, idle: float, count: int,
                stop_flag: List[bool], quiet: bool) -> None:
     """Logs and collects frames until a stop condition. The clock is read only when the bus is
-    idle or every 256 frames."""
+    idle or every 256 frames. For `idle`, traffic is every frame but the node's keep-alive ones
+    (ATT_STATUS and ATT_COUNTERS: alone, 10 per second, they are all a node without input sends;
+    with outputs they come with ATT_EULER, which counts)."""
+    from .. import canproto
     from ..progress import bar
+    keepalive = {canproto.frame_id("ATT_STATUS"), canproto.frame_id("ATT_COUNTERS")}
     t0 = time.monotonic()
     last = None
     seen_since_check = 0
+    traffic_since_check = 0
     source = (_frames_socketcan if type(bus).__name__ == "SocketcanBus" and getattr(bus, "socket", None)
               else _frames_generic)(bus, stop_flag)
     pb = bar(None, "record", quiet=quiet, unit="frame")
@@ -270,8 +279,10 @@ def record_bus(rec: Recorder, bus, logger, duration: float, idle: float, count: 
         for msg in source:
             if msg is None or msg == "error" or seen_since_check >= 256:
                 now = time.monotonic()
-                if seen_since_check:
+                if traffic_since_check:
                     last = now
+                    traffic_since_check = 0
+                if seen_since_check:
                     pb.update(seen_since_check)
                     seen_since_check = 0
                 if msg == "error":
@@ -290,6 +301,8 @@ def record_bus(rec: Recorder, bus, logger, duration: float, idle: float, count: 
                 logger(msg)
             rec.feed(float(msg.timestamp), int(msg.arbitration_id), bytes(msg.data), bool(msg.is_extended_id))
             seen_since_check += 1
+            if msg.is_extended_id or msg.arbitration_id not in keepalive:
+                traffic_since_check += 1
             if count > 0 and rec.frames >= count:
                 break
     finally:
@@ -299,7 +312,7 @@ def record_bus(rec: Recorder, bus, logger, duration: float, idle: float, count: 
 
 VIRTUAL_WARNING = ("warning: python-can's 'virtual' interface reaches only buses in this same "
                    "process: frames another program sends (attekf replay, attekf-node) never "
-                   "arrive here; between processes use -i socketcan -c vcan0 (docs/hil.md)")
+                   "arrive here; between processes use -i socketcan -c vcan0")
 
 
 def run(args) -> int:

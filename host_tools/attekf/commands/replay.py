@@ -20,11 +20,11 @@ from ..errors import DeviceError, InputError, Interrupted, UsageError
 NAME = "replay"
 HELP = "replay a recording (CSV, BROAD HDF5) or a CAN log onto a python-can interface or into a log"
 DESCRIPTION = """\
-Replays a recorded IMU stream as the node's input frames (hal/can/attekf.dbc: IMU_GYRO,
-IMU_ACCEL, IMU_MAG, IMU_SYNC per sample; docs/can_protocol.md) onto any python-can interface,
-or writes them to a CAN log file.
+Replays a recorded IMU stream as the node's input frames (the node's CAN database, attekf.dbc
+in the package: IMU_GYRO, IMU_ACCEL, IMU_MAG, IMU_SYNC per sample) onto any python-can
+interface, or writes them to a CAN log file.
 
-Inputs: a recording (.csv with the columns of docs/host_tools.md, or the BROAD .hdf5 layout),
+Inputs: a recording (.csv with the columns of attekf run --help, or the BROAD .hdf5 layout),
 or a CAN log python-can reads (.log candump, .asc, .blf), replayed frame by frame with its
 original timing.
 
@@ -40,7 +40,7 @@ complete: an interrupted run leaves no log.
 
 python-can's 'virtual' interface connects only buses inside one process: frames replayed on
 it from this command reach no other program (attekf record, attekf-node). Between processes
-use socketcan (vcan0: docs/hil.md).
+use socketcan (a vcan0 interface: ip link add vcan0 type vcan; ip link set vcan0 up).
 
 examples:
   attekf replay rec.csv -i socketcan -c vcan0
@@ -58,7 +58,7 @@ ReplayError = InputError
 
 VIRTUAL_WARNING = ("warning: python-can's 'virtual' interface reaches only buses in this same "
                    "process: no other program (attekf record, attekf-node) receives these frames; "
-                   "between processes use -i socketcan -c vcan0 (docs/hil.md)")
+                   "between processes use -i socketcan -c vcan0")
 
 
 @dataclass

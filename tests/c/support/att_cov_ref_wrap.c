@@ -27,7 +27,7 @@
 #define att_cov_limit_variance refimpl_limit_variance
 #define att_cov_negate_state refimpl_negate_state
 #define att_cov_update_unit refimpl_update_unit
-#define att_cov_update_tilt refimpl_update_tilt
+#define att_cov_update_angles refimpl_update_angles
 #define att_cov_is_pd refimpl_is_pd
 #define att_cov_ensure_pd refimpl_ensure_pd
 #define att_cov_guard refimpl_guard
@@ -133,14 +133,14 @@ ekf_status_t refcov_update_unit(ekf_scalar_t P[ATT_NN], ekf_scalar_t x[ATT_N], i
     return st;
 }
 
-ekf_status_t refcov_update_tilt(ekf_scalar_t P[ATT_NN], ekf_scalar_t x[ATT_N], ekf_scalar_t h_phi,
-                                ekf_scalar_t h_theta, ekf_scalar_t nu, ekf_scalar_t r_var, ekf_scalar_t gate,
-                                ekf_scalar_t var_floor, ekf_innov_t *info)
+ekf_status_t refcov_update_angles(ekf_scalar_t P[ATT_NN], ekf_scalar_t x[ATT_N], const ekf_scalar_t h[3],
+                                  ekf_scalar_t nu, ekf_scalar_t r_var, ekf_scalar_t gate, ekf_scalar_t var_floor,
+                                  ekf_innov_t *info)
 {
     att_cov_t c;
     ekf_status_t st;
     load(&c, P);
-    st = refimpl_update_tilt(&c, x, h_phi, h_theta, nu, r_var, gate, var_floor, info);
+    st = refimpl_update_angles(&c, x, h, nu, r_var, gate, var_floor, info);
     store(&c, P);
     return st;
 }

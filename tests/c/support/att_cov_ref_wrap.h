@@ -27,9 +27,9 @@ int refcov_limit_variance(ekf_scalar_t P[ATT_NN], int i, ekf_scalar_t max_var);
 void refcov_negate_state(ekf_scalar_t P[ATT_NN], int i);
 ekf_status_t refcov_update_unit(ekf_scalar_t P[ATT_NN], ekf_scalar_t x[ATT_N], int idx, ekf_scalar_t nu,
                                 ekf_scalar_t r_var, ekf_scalar_t gate, ekf_scalar_t var_floor, ekf_innov_t *info);
-ekf_status_t refcov_update_tilt(ekf_scalar_t P[ATT_NN], ekf_scalar_t x[ATT_N], ekf_scalar_t h_phi,
-                                ekf_scalar_t h_theta, ekf_scalar_t nu, ekf_scalar_t r_var, ekf_scalar_t gate,
-                                ekf_scalar_t var_floor, ekf_innov_t *info);
+ekf_status_t refcov_update_angles(ekf_scalar_t P[ATT_NN], ekf_scalar_t x[ATT_N], const ekf_scalar_t h[3],
+                                  ekf_scalar_t nu, ekf_scalar_t r_var, ekf_scalar_t gate, ekf_scalar_t var_floor,
+                                  ekf_innov_t *info);
 int refcov_is_pd(const ekf_scalar_t P[ATT_NN], ekf_scalar_t rel_margin);
 int refcov_guard(ekf_scalar_t P[ATT_NN], ekf_scalar_t rel_margin, ekf_scalar_t var_floor);
 
