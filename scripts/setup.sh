@@ -61,7 +61,7 @@ if ((${#hil_missing[@]})); then
   $SUDO apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${hil_missing[@]}" >/dev/null
 fi
-hil_kernel="$(python3 "$ROOT/hal/tools/vcan_run.py" --prepare)" \
+hil_kernel="$(python3 "$ROOT/tests/vm/vcan_run.py" --prepare)" \
   || { echo "[setup] cannot fetch the HIL's QEMU guest kernel (above)" >&2; exit 1; }
 log "HIL: ${hil_kernel#vcan_run: }"
 

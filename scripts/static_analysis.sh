@@ -13,7 +13,7 @@ set -uo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
 OUT="${1:-$ROOT/build/static}"
-JOBS="$(nproc)"
+JOBS="${ATTEKF_JOBS:-$(nproc)}"   # parallel jobs (scripts/test.sh runs it with one, beside pytest)
 log() { printf '[static] %s\n' "$*"; }
 
 # shellcheck source=scripts/prereq.sh

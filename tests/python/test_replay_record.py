@@ -157,6 +157,45 @@ def test_replay_counts_send_failures_and_goes_on(rec_csv):
     assert st.errors == {"ENETDOWN": st.failed}
 
 
+def test_replay_marks_the_stream_time_whatever_its_lag(rec_csv, tmp_path, capsys):
+    """--mark S:FILE: FILE appears just before the first frame S s or more into the stream goes
+    out, by the stream's time, so a replay that lags (here: no pacing at all) marks the same
+    frames as one on time."""
+    import can
+
+    marks = [tmp_path / "a", tmp_path / "b"]
+
+    class Watch(can.BusABC):
+        """Records, per frame sent, which mark files existed."""
+        def __init__(self):
+            super().__init__(channel="watch")
+            self.seen = []
+
+        def send(self, msg, timeout=None):
+            self.seen.append(tuple(m.exists() for m in marks))
+
+        def _recv_internal(self, timeout):
+            return None, False
+
+    fr = replay.load_frames(str(rec_csv))
+    bus = Watch()
+    replay.send_stream(bus, replay.iterate_loops(fr, 1, True), len(fr), fast=True, quiet=True,
+                       marks=[(2.0, str(marks[1])), (1.5, str(marks[0]))])
+    t = np.array([f[0] for f in replay.iterate_loops(fr, 1, True)])
+    t = t - t[0]
+    assert bus.seen == [(bool(x >= 1.5), bool(x >= 2.0)) for x in t]
+    assert 0 < sum(a for a, _ in bus.seen) < len(t)
+    done = tmp_path / "done"
+    assert attekf(["replay", str(rec_csv), "-i", "virtual", "-c", "mark", "--fast", "-q",
+                   "--mark", f"2.5:{done}"]) == 0
+    assert done.exists()
+    capsys.readouterr()
+    for bad in ("1", "x:f", "-1:f", "inf:f"):
+        assert attekf(["replay", str(rec_csv), "--to-log", str(tmp_path / "x.log"), "--mark", bad]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "--mark" in err[0], err
+
+
 def test_record_decodes_a_log_to_csv_and_stats(rec_csv, tmp_path):
     """Outputs of a log (encoded here with cantools) come out as estimator-output CSV rows whose
     t_s is the sample time of the input they include."""

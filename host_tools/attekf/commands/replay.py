@@ -9,7 +9,7 @@ import signal
 import sys
 import time
 from dataclasses import dataclass, field
-from typing import Dict, Iterator, List, Optional, Tuple
+from typing import Dict, Iterator, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -101,6 +101,10 @@ def add_arguments(p) -> None:
     p.add_argument("--stats", metavar="FILE", help="write what was sent (counts, failures) as JSON")
     p.add_argument("--started-file", metavar="FILE",
                    help="create FILE when the first frame goes out (to time things in scripts)")
+    p.add_argument("--mark", action="append", default=[], metavar="S:FILE",
+                   help="create FILE just before the first frame S seconds or more after the "
+                        "stream's first one goes out (repeatable; to time things in scripts by "
+                        "the stream, whatever the replay's lag behind the clock)")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -261,7 +265,7 @@ def open_bus(interface: str, channel: Optional[str], bitrate: Optional[int] = No
     except Exception as e:  # interfaces raise CanError, OSError, ValueError, ImportError, ...
         hint = ""
         if getattr(e, "errno", None) == errno.EAFNOSUPPORT:
-            hint = " (this kernel has no CAN support: run where it has, e.g. in a virtual machine with vcan0)"
+            hint = " (this kernel has no CAN support: run in a guest with vcan0, tests/vm/vcan_run.py, docs/hil.md)"
         raise DeviceError(f"cannot open {interface} channel {channel}: {e or type(e).__name__}{hint}") from None
 
 
@@ -290,15 +294,18 @@ def _pack_frame(fid: int, data: bytes, ext: bool) -> bytes:
 def send_stream(bus, frames: Iterator[Tuple[float, int, bytes, bool]], total: Optional[int],
                 speed: float = 1.0, fast: bool = False, max_fps: float = 0.0,
                 send_timeout: float = 0.05, quiet: bool = False,
-                stop_flag: Optional[List[bool]] = None, started_file: Optional[str] = None) -> SendStats:
+                stop_flag: Optional[List[bool]] = None, started_file: Optional[str] = None,
+                marks: Sequence[Tuple[float, str]] = ()) -> SendStats:
     """Sends frames paced at their time stamps / speed (or as fast as allowed). Frames with the
-    same time stamp (the frames of one sample) go out back to back."""
+    same time stamp (the frames of one sample) go out back to back. marks [(S, FILE)]: each FILE
+    is created just before the first frame S seconds or more into the stream goes out."""
     import can
     from ..progress import bar
     st = SendStats()
     raw = _raw_socket(bus)
     t_first = None
     t_last = None
+    marks = sorted(marks)
     wall0 = time.perf_counter()
     min_gap = 1.0 / max_fps if (fast and max_fps > 0) else 0.0
     next_slot = wall0
@@ -334,6 +341,9 @@ def send_stream(bus, frames: Iterator[Tuple[float, int, bytes, bool]], total: Op
                     if next_slot > now:
                         time.sleep(next_slot - now)
                     next_slot = max(next_slot, now - 0.01) + min_gap  # small catch-up bursts only
+                while marks and t - t_first >= marks[0][0]:
+                    open(marks[0][1], "w").close()
+                    marks = marks[1:]
             if raw is not None:
                 frame = _pack_frame(fid, data, ext)
                 deadline = None
@@ -417,6 +427,7 @@ def run(args) -> int:
         out.file(args.stats, "--stats")
         if args.started_file:
             check_file(args.started_file, "--started-file")
+        marks = [_mark(m) for m in args.mark]
         fr = load_frames(args.input, args.start, args.stop, use_mag=not args.no_mag)
         is_rec = os.path.splitext(args.input)[1].lower() in RECORDING_EXT
         total = len(fr) * args.loop if args.loop else None
@@ -429,7 +440,7 @@ def run(args) -> int:
                                   "complete)") from None
             interrupted = False
         else:
-            st, interrupted = _send(args, stream, total)
+            st, interrupted = _send(args, stream, total, marks)
         info = {"input": args.input, "samples": fr.samples * (args.loop or 1) if is_rec else None,
                 "saturated": fr.saturated, "interrupted": interrupted, **st.as_dict()}
         if args.stats:
@@ -453,7 +464,20 @@ def run(args) -> int:
     return 130 if interrupted and args.loop else 0
 
 
-def _send(args, stream, total) -> Tuple[SendStats, bool]:
+def _mark(text: str) -> Tuple[float, str]:
+    """--mark S:FILE checked."""
+    from ..outputs import check_file
+    s, sep, path = text.partition(":")
+    try:
+        at = float(s)
+    except ValueError:
+        at = -1.0
+    if not sep or not (at >= 0.0) or at == float("inf"):
+        raise UsageError(f"--mark {text!r}: expected S:FILE with S seconds >= 0")
+    return at, check_file(path, "--mark")
+
+
+def _send(args, stream, total, marks) -> Tuple[SendStats, bool]:
     """Sends the stream on the bus until done or SIGINT/SIGTERM; (stats, interrupted)."""
     stop_flag = [False]
 
@@ -467,7 +491,8 @@ def _send(args, stream, total) -> Tuple[SendStats, bool]:
     try:
         st = send_stream(bus, stream, total, speed=args.speed, fast=args.fast,
                          max_fps=args.max_fps, send_timeout=args.send_timeout,
-                         quiet=args.quiet, stop_flag=stop_flag, started_file=args.started_file)
+                         quiet=args.quiet, stop_flag=stop_flag, started_file=args.started_file,
+                         marks=marks)
     finally:
         for sig, old in ((signal.SIGINT, old_int), (signal.SIGTERM, old_term)):
             if old is not None:

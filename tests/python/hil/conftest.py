@@ -1,9 +1,10 @@
 """Fixtures of the hardware-in-loop tests (tests/python/hil): the vcan runner and the node.
 
-The HIL needs one of the backends of hal/tools/vcan_run.py: a kernel with CAN, user-mode Linux
+The HIL needs one of the backends of tests/vm/vcan_run.py: a kernel with CAN, user-mode Linux
 or QEMU. On a machine with none the tests skip with the reasons, except under CI (CI=true),
 where they fail: the project's set-up installs UML and QEMU, so none usable there is a broken
-set-up."""
+set-up. A backend that cannot be used on this machine is reported, not a failure, as long as
+one works (test_vcan_backends.py)."""
 
 from __future__ import annotations
 

@@ -16,6 +16,13 @@ canplayer at their times).
 
     dronecan_guest.py --node BIN --work DIR --stream REC.csv --traffic TRAFFIC.log
 
+Each phase ends at a barrier, not after a pause: once every sender has finished, a GetNodeInfo
+request from a node id nobody else uses goes to the estimator. Its socket is a queue, so it
+answers only after reading every frame sent before (and sending the Solutions of those samples);
+candump, whose socket is a queue too, logs the answer after everything the node sent before it.
+Only when the answer is in candump's log are the node and candump stopped: on a loaded machine
+either may lag the bus by seconds.
+
 Writes WORK/config.json (what the client saw), WORK/{config,traffic}/ (node.json, node.log,
 bus.log, replay.json). Exit status 0 if every step ran (the checks are the test's), 1 if not."""
 
@@ -31,18 +38,30 @@ import time
 import traceback
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # tests/python: dcanutil
+import dcanutil  # noqa: E402
+
 NODE_ID = 100
 CLIENT_ID = 127
 RESTART_MAGIC = 0xACCE551B1E
 LIVE_PARAM, LIVE_VALUE = "mag_declination", 0.0625           # in force at once
 RESTART_PARAM, RESTART_VALUE = "accel_lpf_order", 1          # at the next restart
+BARRIER_ID = 126                                              # the barrier's requests come from it
+BARRIER_TIMEOUT_S = 120.0
+PROBE_ID = 0x7FE                                              # candump's start probe (11-bit id)
 RUNNING = []                                                  # processes of the current phase
+# The node's and candump's socket receive buffers (the kernel doubles the size asked for) hold
+# every frame of a phase: in a guest with one virtual CPU on a loaded host either can be starved
+# for seconds while canplayer and the replay keep sending; it catches up afterwards, and the
+# barrier waits for that, instead of the kernel dropping what it had no room for.
+RCVBUF_BYTES = 32 << 20
 
 
 def start_node(node: str, d: Path, params: Path) -> subprocess.Popen:
     ready = d / "node.ready"
     p = subprocess.Popen([node, "-i", "vcan0", "--protocol", "dronecan", "--input", "dbc", "--node-id",
                           str(NODE_ID), "--unique-id", "0123456789ABCDEF0123456789ABCDEF", "--params", str(params),
+                          "--rcvbuf", str(RCVBUF_BYTES),
                           "--ready-file", str(ready), "--stats", str(d / "node.json")],
                          stdout=open(d / "node.log", "w"), stderr=subprocess.STDOUT)
     RUNNING.append(p)
@@ -56,11 +75,24 @@ def start_node(node: str, d: Path, params: Path) -> subprocess.Popen:
 
 
 def start_candump(d: Path) -> subprocess.Popen:
-    # a large receive buffer: candump shares one virtual CPU with Python processes
-    p = subprocess.Popen(["candump", "-L", "-r", "8388608", "vcan0"], stdout=open(d / "bus.log", "w"),
+    """candump logging the bus to d/bus.log, returned once it logs: a probe frame (standard id
+    PROBE_ID, which DroneCAN does not use; sent before the node starts) is in its log."""
+    import socket
+    log = d / "bus.log"
+    p = subprocess.Popen(["candump", "-L", "-r", str(RCVBUF_BYTES), "vcan0"], stdout=open(log, "w"),
                          stderr=subprocess.DEVNULL)
     RUNNING.append(p)
-    time.sleep(0.2)
+    s = socket.socket(socket.AF_CAN, socket.SOCK_RAW, socket.CAN_RAW)
+    s.bind(("vcan0",))
+    end = time.monotonic() + BARRIER_TIMEOUT_S
+    try:
+        while f" {PROBE_ID:03X}#" not in log.read_text():
+            if p.poll() is not None or time.monotonic() > end:
+                raise RuntimeError(f"candump did not start logging (exit {p.poll()})")
+            s.send(bytes([PROBE_ID & 0xFF, PROBE_ID >> 8, 0, 0, 0, 0, 0, 0]) + bytes(8))
+            time.sleep(0.05)
+    finally:
+        s.close()
     return p
 
 
@@ -70,6 +102,52 @@ def start_replay(stream: str, d: Path) -> subprocess.Popen:
                          stdout=open(d / "replay.log", "w"), stderr=subprocess.STDOUT)
     RUNNING.append(p)
     return p
+
+
+def barrier(d: Path, candump: subprocess.Popen) -> int:
+    """Sends the estimator a GetNodeInfo request and waits for its answer on the bus, then for the
+    answer's last frame in candump's log (d/bus.log): the node has read every frame sent before
+    this call and candump has logged every frame the node sent until then. Returns the number of
+    frames sent to the node; raises if either does not happen within BARRIER_TIMEOUT_S."""
+    import socket
+    import struct
+    from dronecan import uavcan
+    eff = socket.CAN_EFF_FLAG
+    # service frames from the estimator to BARRIER_ID that are responses: source id (bits 0-6),
+    # service (bit 7), destination (bits 8-14), request (bit 15, 0)
+    want = (BARRIER_ID << 8) | 0x80 | NODE_ID
+    s = socket.socket(socket.AF_CAN, socket.SOCK_RAW, socket.CAN_RAW)
+    try:
+        s.setsockopt(socket.SOL_CAN_RAW, socket.CAN_RAW_FILTER, struct.pack("=II", eff | want, eff | 0xFFFF))
+        s.bind(("vcan0",))
+        s.settimeout(BARRIER_TIMEOUT_S)
+        frames = dcanutil.transfer_frames(uavcan.protocol.GetNodeInfo.Request(), 0.0, BARRIER_ID, 0, dest=NODE_ID)
+        for _t, fid, data, _ext in frames:
+            s.send(struct.pack("=IB3x8s", fid | eff, len(data), data))
+        end = time.monotonic() + BARRIER_TIMEOUT_S
+        while True:                                  # the answer's last frame: end of transfer
+            try:
+                raw = s.recv(16)
+            except socket.timeout:
+                raise RuntimeError(f"barrier: no answer from node {NODE_ID} in {BARRIER_TIMEOUT_S:.0f} s") from None
+            fid, n, data = struct.unpack("=IB3x8s", raw)
+            data = data[:n]
+            if data and data[-1] & 0x40:
+                break
+            if time.monotonic() > end:
+                raise RuntimeError(f"barrier: node {NODE_ID} did not finish its answer in {BARRIER_TIMEOUT_S:.0f} s")
+    finally:
+        s.close()
+    line = f"{fid & socket.CAN_EFF_MASK:08X}#{data.hex().upper()}"
+    log = d / "bus.log"
+    end = time.monotonic() + BARRIER_TIMEOUT_S
+    while not any(ln.endswith(line) for ln in log.read_text().splitlines()):
+        if candump.poll() is not None:
+            raise RuntimeError(f"barrier: candump exited ({candump.returncode}) before it logged {line}")
+        if time.monotonic() > end:
+            raise RuntimeError(f"barrier: candump did not log {line} in {BARRIER_TIMEOUT_S:.0f} s")
+        time.sleep(0.05)
+    return len(frames)
 
 
 def stop(p: subprocess.Popen, sig=signal.SIGTERM) -> int:
@@ -96,6 +174,7 @@ class Client:
         self.transfer_errors = 0   # transfers the package refused (frames this client lost)
         self.monitor = NodeMonitor(self.node)
         self.status = []            # (time, uptime, health, mode, vendor code)
+        self.status_at_answer = 0   # len(status) when the last answer came
         self.solutions = []         # (time, [x, y, z, w], timestamp usec)
         self.node.add_handler(dronecan.uavcan.protocol.NodeStatus, self._on_status)
         self.node.add_handler(dronecan.uavcan.equipment.ahrs.Solution, self._on_solution)
@@ -121,9 +200,23 @@ class Client:
         except self.dc.transport.TransferError:
             self.transfer_errors += 1
 
-    def call(self, request, timeout: float = 3.0):
+    def drain(self) -> None:
+        """Handles every frame already in the socket's queue."""
+        while True:
+            try:
+                self.node.spin(0)
+                return
+            except self.dc.transport.TransferError:
+                self.transfer_errors += 1
+
+    def call(self, request, timeout: float = 10.0):
         box = {}
-        self.node.request(request, NODE_ID, lambda e: box.setdefault("e", e), timeout=timeout)
+
+        def answered(e):
+            box.setdefault("e", e)
+            self.status_at_answer = len(self.status)   # NodeStatus handled before the answer
+
+        self.node.request(request, NODE_ID, answered, timeout=timeout)
         end = time.monotonic() + timeout + 1.0
         while "e" not in box and time.monotonic() < end:
             self._spin(0.05)
@@ -171,10 +264,12 @@ def config_phase(args, d: Path, params: Path) -> dict:
     out["saved"] = None if r is None else bool(r.ok)
     r = c.call(c.dc.uavcan.protocol.RestartNode.Request(magic_number=1234))
     out["restart_wrong_magic"] = None if r is None else bool(r.ok)
-    n_before = len(c.status)
     r = c.call(c.dc.uavcan.protocol.RestartNode.Request(magic_number=RESTART_MAGIC))
     out["restart"] = None if r is None else bool(r.ok)
-    c.spin(2.5)                                        # it comes back: NodeStatus from uptime 0
+    n_before = c.status_at_answer                      # it answers, then restarts
+    end = time.monotonic() + 30.0
+    while len(c.status) <= n_before and time.monotonic() < end:
+        c.spin(0.1)                                    # it comes back: NodeStatus from uptime 0
     out["uptime_after_restart"] = [s[1] for s in c.status[n_before:]]
     info = c.call(c.dc.uavcan.protocol.GetNodeInfo.Request())
     out["info_after_restart"] = None if info is None else info.name.decode()
@@ -184,8 +279,9 @@ def config_phase(args, d: Path, params: Path) -> dict:
     replay = start_replay(args.stream, d)
     while replay.poll() is None:
         c.spin(0.1)
-    c.spin(0.6)
     out["replay_rc"] = replay.returncode
+    out["barrier_frames"] = barrier(d, candump)
+    c.drain()                                          # what reached the client before the answer
     out["solutions"] = c.solutions[n_sol:]
     out["client_transfer_errors"] = c.transfer_errors
     out["status_during_stream"] = c.status[n_stat:]
@@ -205,7 +301,7 @@ def traffic_phase(args, d: Path, params: Path) -> dict:
     replay = start_replay(args.stream, d)
     replay.wait(timeout=120)
     out = {"replay_rc": replay.returncode, "canplayer_rc": player.wait(timeout=120)}
-    time.sleep(0.5)
+    out["barrier_frames"] = barrier(d, candump)
     out["node_rc"] = stop(node)
     out["candump_rc"] = stop(candump, signal.SIGINT)
     return out

@@ -1,4 +1,4 @@
-"""Helpers of the hardware-in-loop tests: the node binary, the UML/vcan runner, virtual-backend
+"""Helpers of the hardware-in-loop tests: the node binary, the vcan runner (tests/vm), virtual-backend
 runs, frame logs with injected faults, decoding of logs."""
 
 from __future__ import annotations
@@ -15,9 +15,10 @@ from typing import Dict, List, Tuple
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[3]
-SCENARIO = REPO / "hal" / "tools" / "hil_scenario.sh"
+VM = REPO / "tests" / "vm"          # the guests that bring vcan0 up, and the HIL scenario
+SCENARIO = VM / "hil_scenario.sh"
 REPORT: List[str] = []   # lines for the terminal summary (measured loss, latency)
-FULL_SUITE_BACKEND: List[str] = []   # the backend the full HIL suite ran on in this session
+FULL_SUITE: List = []   # the runner's Result of the full HIL suite's guest in this session
 
 
 def report(line: str) -> None:
@@ -29,16 +30,38 @@ def node_binary() -> Path:
 
 
 def vcan_run_module():
-    """hal/tools/vcan_run.py, imported by path (it is a stand-alone script; its backend
-    modules beside it become importable as vcan_guest, vcan_uml, vcan_qemu). Imported once:
-    the runner remembers which backends failed in this process."""
+    """tests/vm/vcan_run.py, imported by path (it is a stand-alone script; its modules beside
+    it become importable as vcan_choice, vcan_guest, vcan_uml, vcan_qemu). Imported once: the
+    runner remembers which backends failed in this process."""
     if "vcan_run" in sys.modules:
         return sys.modules["vcan_run"]
-    spec = importlib.util.spec_from_file_location("vcan_run", REPO / "hal" / "tools" / "vcan_run.py")
+    spec = importlib.util.spec_from_file_location("vcan_run", VM / "vcan_run.py")
     mod = importlib.util.module_from_spec(spec)
     sys.modules["vcan_run"] = mod
     spec.loader.exec_module(mod)
     return mod
+
+
+def vm_module(name: str):
+    """One of the runner's modules (vcan_choice, vcan_guest, vcan_uml, vcan_qemu)."""
+    vcan_run_module()
+    return sys.modules[name]
+
+
+def check_reported_cause(err) -> str:
+    """A backend that could not boot here must say why with what it showed (vcan_choice's
+    BackendError): the guest's own lines found in its output, the tail of a console that
+    matched no known cause, or nothing at all printed (a silent hang). Returns the reason."""
+    assert err.boot_failed, f"not a boot failure: {err}"
+    if err.cause:
+        for part in err.cause.split("; "):
+            assert part in err.evidence.replace("\r", ""), (part, err.evidence[-2000:])
+        assert err.cause in err.reason
+    elif "printed nothing on its console" in err.reason:
+        assert not err.console.strip(), err.console[-2000:]
+    else:
+        assert "console tail:" in err.reason or "timed out" in err.reason, err.reason
+    return err.reason
 
 
 def read_ifstats(path: Path) -> Dict[str, Dict[str, int]]:

@@ -142,9 +142,11 @@ def test_other_nodes_traffic_loses_nothing_and_sets_no_error(dc_hil):
     st = _node_stats(dc_hil, "traffic")["counters"]
     n_imu = len(hilutil.read_log(dc_hil["root"] / "stream.log"))
     n_other = len(dc_hil["traffic"])
+    n_barrier = r["barrier_frames"]          # the request that ends the phase (dronecan_guest.barrier)
     assert st["rx_overflow"] == 0
-    assert st["rx_frames"] == n_imu + n_other, "frames lost between the bus and the node"
+    assert st["rx_frames"] == n_imu + n_other + n_barrier, "frames lost between the bus and the node"
     assert st["foreign"] == n_other
+    assert st["requests"] == 1 and st["refused"] == 0        # the barrier's GetNodeInfo
     assert st["samples"] == len(dc_hil["rec"])
     for k in ("transfer_errors", "bad_dlc", "duplicate", "late", "incomplete", "discarded", "gaps", "missing",
               "time_errors", "resync", "realign", "ekf_rejected", "tx_errors", "link_down"):

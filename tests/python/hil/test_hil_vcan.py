@@ -1,18 +1,18 @@
-"""Hardware-in-loop test on vcan0, on the first backend of hal/tools/vcan_run.py that works
+"""Hardware-in-loop test on vcan0, on the first backend of tests/vm/vcan_run.py that works
 here (the host's CAN, user-mode Linux or QEMU; docs/hil.md).
 
-One guest boot runs three scenarios with hal/tools/hil_scenario.sh (attekf-node on vcan0,
+One guest boot runs four scenarios with tests/vm/hil_scenario.sh (attekf-node on vcan0,
 `attekf record` logging the bus, `attekf replay` injecting the stream at recorded time):
 
   clean-sim     a simulated recording, 8 s at 200 Hz (always)
   clean-broad   6 s of a real BROAD recording at 285.7 Hz (skipped if the data is absent)
   faults        6 s at 200 Hz with dropped, duplicated, reordered, wrong-length and unknown-id
                 frames injected, and vcan0 taken down for 0.3 s in the middle
+  recreate      vcan0 deleted and created again while the node runs (can-utils' canplayer)
 
 and the same frame logs go through the node's virtual backend (attekf-node --replay) on the host.
 The clean runs must lose no input frame, produce every expected output, and equal the virtual
 run; the fault run must count every injected fault and recover from the bus outage.
-Runtime: about 40 s under UML (boot 2 s, three Python-heavy scenarios, 20 s of paced replay).
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ OUT_PERIOD_US = 10000        # the node's default output rate, 100 Hz
 BROAD_TRIAL = "07_undisturbed_fast_rotation_B.hdf5"
 FAULT_SECONDS = 6.0
 LATE_PART = 1000             # sample of the late faults (after the bounce)
-BOUNCE = (3.0, 0.3)          # vcan0 down AFTER s after the first frame, for DOWN s
+BOUNCE = (3.0, 0.3)          # vcan0 down from AFTER to AFTER + DOWN s of the stream
 TIMING_FLAGS = 0x0002 | 0x0020 | 0x0800   # Stale, LinkError, Heartbeat: depend on wall time
 
 
@@ -102,7 +102,7 @@ def hil(tmp_path_factory, vcan, node):
         for name, s in scen.items()) + "; true"
     env = dict(os.environ, ATTEKF_NODE=str(node))
     res = vcan.run(script, env=env, timeout=600)
-    hilutil.FULL_SUITE_BACKEND.append(res.mode)
+    hilutil.FULL_SUITE.append(res)
     report(f"HIL ran on backend {res.mode}, {res.seconds:.1f} s wall time (command started after "
            f"{res.boot_seconds:.1f} s)" + "".join(f"; {n}" for n in res.notes))
     for name, s in scen.items():
@@ -271,7 +271,14 @@ def canproto_bits():
     return canproto.STATUS_BITS
 
 
-def test_faults_live_equals_virtual_before_outage_and_recovers(hil):
+def test_faults_live_equals_virtual_before_outage_and_recovers(hil, tmp_path):
+    """Up to the outage the live node equals the virtual run of the planned stream; as a whole,
+    the outage included, it equals the virtual run of the frames it actually received (the
+    recorder's log of the bus: the same frames, in the same order), output for output, but for
+    the outputs it could not send while vcan0 was down. How many samples the outage costs
+    depends on the machine's load; that the node on the bus does what it does offline with the
+    same input does not."""
+    from attekf import canproto
     s = hil["faults"]
     live, virt = s["live_out"].rows, s["virt_out"].rows
     gap_rows = [i for i, r in enumerate(live) if r.seq > 500 and (r.flags & canproto_bits()["Gap"])]
@@ -282,10 +289,29 @@ def test_faults_live_equals_virtual_before_outage_and_recovers(hil):
     before_v = [r for r in virt if r.seq <= lost_from]
     assert [r.seq for r in before_l] == [r.seq for r in before_v]
     assert [r.euler for r in before_l] == [r.euler for r in before_v]
-    # after the outage: outputs continue to the end of the stream, aligned, near the virtual run
+    # after the outage: outputs continue to the end of the stream, aligned
     last = live[-1]
     assert last.seq == virt[-1].seq and last.flags & 0x1
-    assert max(abs(a - b) for a, b in zip(last.euler[:2], virt[-1].euler[:2])) < 0.05
+    outputs = {canproto.frame_id(n) for n in canproto.OUTPUT_MESSAGES}
+    received = [f for f in hilutil.read_log(s["dir"] / "bus.log") if f[3] or f[1] not in outputs]
+    hilutil.write_log(tmp_path / "received.log", received)
+    again = hilutil.run_virtual(tmp_path / "received.log", tmp_path / "again.log", tmp_path / "again.json")
+    c, a = s["node"]["counters"], again["counters"]
+    for k in ("rx_frames", "foreign", "bad_dlc", "duplicate", "late", "incomplete", "discarded",
+              "gaps", "missing", "samples", "outputs"):
+        assert a[k] == c[k], f"{k}: live {c[k]}, virtual run of the received frames {a[k]}"
+    # every output on the bus is the virtual run's, bit for bit; the virtual run's outputs not on
+    # the bus are those the node computed while vcan0 was down (from frames it had received
+    # before: a backlog on a loaded machine), whose sends failed. The filter's part and Aligned
+    # only: a latched status flag (FrameError, Incomplete, Gap) leaves with whichever output or
+    # heartbeat is sent next, which depends on the wall clock (heartbeats while the stream is
+    # stale) and on which sends failed; the flags are checked in test_faults_live_counters_and_flags.
+    aligned = canproto_bits()["Aligned"]
+    key = lambda r: (r.euler, r.rates, r.sigma, r.att_flags, r.flags & aligned)
+    offline = {r.seq: key(r) for r in hilutil.decode_outputs(tmp_path / "again.log").rows}
+    assert [key(r) for r in live] == [offline.get(r.seq) for r in live]
+    not_sent = len(offline) - len(live)
+    assert 0 <= not_sent <= c["tx_errors"], (not_sent, c["tx_errors"])
 
 
 def test_interface_deleted_and_recreated(hil):

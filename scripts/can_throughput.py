@@ -13,12 +13,12 @@ stops the node and reads its counters. A rate is *sustained* when
 
 It runs a ladder of rates, then bisects between the highest sustained and the lowest failed one,
 and prints a table and the highest sustained rate. Where the kernel has no CAN the whole run
-happens inside one guest of hal/tools/vcan_run.py (user-mode Linux, or QEMU): there the node,
+happens inside one guest of tests/vm/vcan_run.py (user-mode Linux, or QEMU): there the node,
 the sender and the kernel share ONE virtual CPU and every system call is expensive (under QEMU
 without KVM every instruction is emulated), so the figure is a lower bound for real hardware.
 
-    hal/tools/can_throughput.py                    # default ladder, 5 s per rate
-    hal/tools/can_throughput.py --rates 10000,20000 --duration 10 --json out.json
+    scripts/can_throughput.py                      # default ladder, 5 s per rate
+    scripts/can_throughput.py --rates 10000,20000 --duration 10 --json out.json
 
 Standard library only. Binaries: build/host (override with --node / --blast).
 """
@@ -35,7 +35,7 @@ import time
 from pathlib import Path
 from typing import Dict, List, Optional
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_NODE = ROOT / "build" / "host" / "firmware" / "app" / "attekf-node"
 DEFAULT_BLAST = ROOT / "build" / "host" / "hal" / "attekf-can-blast"
 DEFAULT_RATES = (5000, 10000, 15000, 20000, 25000, 30000, 40000)
@@ -134,7 +134,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     ap.add_argument("--blast", default=str(DEFAULT_BLAST))
     ap.add_argument("--iface", default="vcan0")
     ap.add_argument("--mode", choices=("auto", "host", "uml", "qemu", "qemu-kvm", "qemu-tcg"), default="auto",
-                    help="where vcan0 comes from (hal/tools/vcan_run.py backends)")
+                    help="where vcan0 comes from (tests/vm/vcan_run.py backends)")
     ap.add_argument("--json", metavar="FILE", help="write every result as JSON")
     ap.add_argument("--inside", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--work", default="", help=argparse.SUPPRESS)
@@ -149,7 +149,7 @@ def main(argv: Optional[List[str]] = None) -> int:
         if not os.access(b, os.X_OK):
             print(f"can_throughput: {b} is not built (cmake --build build/host)", file=sys.stderr)
             return 1
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    sys.path.insert(0, str(ROOT / "tests" / "vm"))
     import tempfile
     import vcan_run
     work = tempfile.mkdtemp(prefix="can_throughput.")

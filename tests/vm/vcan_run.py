@@ -7,25 +7,27 @@ Backends, tried in this order by mode auto:
   host      this kernel's CAN (``socket(PF_CAN)`` works): the command runs directly, after
             the interfaces are created if missing (root)
   uml       user-mode Linux (vcan_uml.py): Debian's ``linux.uml`` with the host's ``/`` as its
-            root; on CPUs whose XSAVE area UML < 6.13 cannot handle (AMX) with the ptrace
-            XSTATE wrapper of uml_xstate/, and one retry with it after a boot that failed with
-            ``ptrace set fp regs failed``
+            root; with the ptrace XSTATE wrapper of uml_xstate/ where the host kernel refuses
+            UML's XSTATE writes (asked by a probe), and one retry with it after a boot that
+            failed with ``ptrace set fp regs failed``
   qemu-kvm  QEMU with KVM (vcan_qemu.py): Debian's kernel, the host's ``/`` over virtio-9p;
-            only where the CPU has vmx/svm and the guest prints within a few seconds
+            only where the CPU has vmx/svm, and given up when the guest prints nothing
+            within a few seconds or QEMU fails
   qemu-tcg  the same under emulation
 
 Each backend that cannot run the command logs one line with the root cause on stderr, and the
-next one is tried; a backend that failed is not tried again in the same process. The command
-runs in the current directory with the current environment; its stdout, stderr and exit status
-come back through files (no TTY needed; CI has no stdin).
+next one is tried; a backend that failed is not tried again in the same process. The
+decisions are in vcan_choice.py (pure logic, tested with fakes). The command runs in the
+current directory with the current environment; its stdout, stderr and exit status come back
+through files (no TTY needed; CI has no stdin).
 
 Command line::
 
-    hal/tools/vcan_run.py [--mode auto|host|uml|qemu|qemu-kvm|qemu-tcg] [--timeout S]
-                          [--iface vcan0 ...] -- CMD ARGS...
-    hal/tools/vcan_run.py --shell 'candump -n 1 vcan0 & cansend vcan0 123#00; wait'
-    hal/tools/vcan_run.py --backends        what each backend needs and whether it has it
-    hal/tools/vcan_run.py --prepare         fetch the QEMU guest kernel into the cache
+    tests/vm/vcan_run.py [--mode auto|host|uml|qemu|qemu-kvm|qemu-tcg] [--timeout S]
+                         [--iface vcan0 ...] -- CMD ARGS...
+    tests/vm/vcan_run.py --shell 'candump -n 1 vcan0 & cansend vcan0 123#00; wait'
+    tests/vm/vcan_run.py --backends        what each backend needs and whether it has it
+    tests/vm/vcan_run.py --prepare         fetch the QEMU guest kernel into the cache
 
 exits with the command's status (125 if no backend could run it, with each backend's reason).
 $ATTEKF_VCAN_MODE forces a mode like --mode (qemu: KVM where usable, else TCG). From Python:
@@ -44,16 +46,14 @@ import time
 from typing import Dict, List, Optional, Sequence, Tuple, Union
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import vcan_choice as choice  # noqa: E402
 import vcan_guest  # noqa: E402
 import vcan_qemu  # noqa: E402
 import vcan_uml  # noqa: E402
-from vcan_guest import EXIT_INFRA, BackendError, Result, VcanError  # noqa: E402,F401
+from vcan_choice import BACKENDS, EXIT_INFRA, MODES, BackendError, Result, VcanError  # noqa: E402,F401
 
-BACKENDS = ("host", "uml", "qemu-kvm", "qemu-tcg")
-MODES = ("auto",) + BACKENDS + ("qemu",)
 DEFAULT_TIMEOUT_S = 300.0
 DEFAULT_MEM = "512M"
-UML_KERNEL = vcan_uml.UML_KERNEL     # kept for callers of the previous single-file runner
 _failed: Dict[str, str] = {}         # backend -> why it failed in this process (auto skips it)
 
 
@@ -83,21 +83,35 @@ def uml_available() -> Optional[str]:
     return vcan_uml.available()
 
 
-def backend_status(ifaces: Sequence[str] = ("vcan0",)) -> Dict[str, Tuple[Optional[str], bool]]:
-    """For each backend: (why it cannot be used here, or None; whether it is expected to work
-    on a machine set up by scripts/setup.sh). Host CAN and KVM depend on the machine; UML and
-    QEMU/TCG are installed by the set-up. No guest is booted."""
-    host = host_can_reason()
-    if host is None and os.geteuid() != 0:
+def host_precheck(ifaces: Sequence[str]) -> Optional[str]:
+    """Why the host's own CAN cannot be used, or None."""
+    why = host_can_reason()
+    if why is None and os.geteuid() != 0:
         missing = [n for n in ifaces if not os.path.exists(f"/sys/class/net/{n}")]
         if missing:
-            host = f"{', '.join(missing)} missing and not root (cannot create it)"
-    qemu = vcan_qemu.available()
-    kvm = qemu or vcan_qemu.kvm_usable()
-    return {"host": (host, False),
-            "uml": (vcan_uml.available(), True),
-            "qemu-kvm": (kvm, vcan_qemu.kvm_usable() is None),
-            "qemu-tcg": (qemu, True)}
+            why = f"{', '.join(missing)} missing and not root (cannot create it)"
+    return why
+
+
+def precheck(backend: str, ifaces: Sequence[str] = ("vcan0",), kvm_flags: bool = True) -> Optional[str]:
+    """Why a backend cannot be used here, found without booting anything, or None.
+    kvm_flags=False: KVM is worth a try on a CPU without vmx/svm too."""
+    if backend == "host":
+        return host_precheck(ifaces)
+    if backend == "uml":
+        return vcan_uml.available()
+    if backend == "qemu-kvm":
+        return vcan_qemu.available() or vcan_qemu.kvm_usable(kvm_flags)
+    if backend == "qemu-tcg":
+        return vcan_qemu.available()
+    raise ValueError(f"backend must be one of {', '.join(BACKENDS)}, not {backend!r}")
+
+
+def backend_status(ifaces: Sequence[str] = ("vcan0",)) -> Dict[str, Tuple[Optional[str], bool]]:
+    """For each backend: (why it cannot be used here, or None; whether scripts/setup.sh
+    installs it, so that its absence is a broken set-up). Host CAN and KVM depend on the
+    machine; UML and QEMU/TCG are installed by the set-up. No guest is booted."""
+    return {b: (precheck(b, ifaces), b in ("uml", "qemu-tcg")) for b in BACKENDS}
 
 
 def _ensure_host_ifaces(ifaces: Sequence[str]) -> None:
@@ -117,9 +131,6 @@ def _ensure_host_ifaces(ifaces: Sequence[str]) -> None:
 
 
 def _run_host(cmd: str, ifaces, timeout, env, cwd) -> Result:
-    why = host_can_reason()
-    if why:
-        raise BackendError("host", why)
     _ensure_host_ifaces(ifaces)
     t0 = time.monotonic()
     try:
@@ -135,64 +146,32 @@ def _run_backend(backend: str, cmd: str, ifaces, timeout, env, cwd, mem, keep) -
         return _run_host(cmd, ifaces, timeout, env, cwd)
     if backend == "uml":
         return vcan_uml.run(cmd, ifaces, timeout, env, cwd, mem, keep, _log)
-    if backend in ("qemu-kvm", "qemu-tcg"):
-        return vcan_qemu.run(cmd, ifaces, timeout, env, cwd, keep, backend.split("-")[1])
-    raise ValueError(f"mode must be one of {', '.join(MODES)}, not {backend!r}")
-
-
-def _order(mode: str) -> Tuple[List[str], bool]:
-    """Backends to try for a mode, and whether falling back between them is allowed."""
-    if mode == "auto":
-        return list(BACKENDS), True
-    if mode == "qemu":
-        return ["qemu-kvm", "qemu-tcg"], True
-    if mode in BACKENDS:
-        return [mode], False
-    raise ValueError(f"mode must be one of {', '.join(MODES)}, not {mode!r}")
+    return vcan_qemu.run(cmd, ifaces, timeout, env, cwd, keep, backend.split("-")[1])
 
 
 def run(cmd: Union[str, Sequence[str]], *, ifaces: Sequence[str] = ("vcan0",), mode: str = "auto",
         timeout: float = DEFAULT_TIMEOUT_S, env: Optional[Dict[str, str]] = None,
-        cwd: Optional[str] = None, mem: str = DEFAULT_MEM, keep: bool = False) -> Result:
+        cwd: Optional[str] = None, mem: str = DEFAULT_MEM, keep: bool = False,
+        kvm_flags: bool = True) -> Result:
     """Runs cmd (a shell string or an argv list) with the vcan interfaces up.
 
     mode: a backend ("host", "uml", "qemu-kvm", "qemu-tcg"), "qemu" (KVM where usable, else
     TCG) or "auto" (the first that works, in that order; $ATTEKF_VCAN_MODE overrides auto).
+    kvm_flags=False tries KVM on a CPU without vmx/svm too (the tests: what does it do there).
     Raises VcanError if the command could not be run (the message names each backend's
     reason); the command's own failure is Result.returncode."""
     env = dict(os.environ if env is None else env)
     cwd = os.path.abspath(cwd or os.getcwd())
     if mode == "auto":
         mode = os.environ.get("ATTEKF_VCAN_MODE", "").strip() or "auto"
-    order, fallback = _order(mode)
+    backends, fallback = choice.order(mode)
+    vcan_uml.xstate_setting()            # a wrong $ATTEKF_UML_XSTATE is an error whatever runs
     shell = vcan_guest.as_shell(cmd)
-    reasons: List[str] = []
-    notes: List[str] = []
-    for i, backend in enumerate(order):
-        if fallback and backend in _failed:
-            reasons.append(f"{backend}: {_failed[backend]}")
-            continue
-        if backend == "qemu-kvm" and fallback:
-            why = vcan_qemu.available() or vcan_qemu.kvm_usable()
-            if why:        # not an attempt: say why once, then TCG
-                _failed[backend] = f"not usable: {why}"
-                reasons.append(f"{backend}: not usable: {why}")
-                _log(f"{backend}: not usable: {why}; trying {order[i + 1]}")
-                continue
-        try:
-            res = _run_backend(backend, shell, ifaces, timeout, env, cwd, mem, keep)
-        except BackendError as e:
-            if not fallback or not e.boot_failed:
-                raise VcanError(f"{backend}: {e.reason}" if fallback else str(e)) from e
-            _failed[backend] = e.reason
-            reasons.append(f"{backend}: {e.reason}")
-            nxt = f"; trying {order[i + 1]}" if i + 1 < len(order) else ""
-            _log(f"{backend}: {e.reason}{nxt}")
-            notes.append(f"{backend}: {e.reason}")
-            continue
-        res.notes = notes + res.notes
-        return res
-    raise VcanError("no backend could run the command: " + " | ".join(reasons))
+    return choice.first_working(
+        backends, fallback,
+        precheck=lambda b: precheck(b, ifaces, kvm_flags),
+        attempt=lambda b: _run_backend(b, shell, ifaces, timeout, env, cwd, mem, keep),
+        failed=_failed, log=_log)
 
 
 def _print_backends() -> int:
@@ -200,8 +179,7 @@ def _print_backends() -> int:
         state = "usable" if why is None else f"not usable: {why}"
         print(f"{name:9s} {state}" + ("" if why is None or not expected else " (the set-up should provide it)"))
     if vcan_uml.available() is None:
-        need, why = vcan_uml.wrapper_needed()
-        print(f"{'':9s} UML XSTATE wrapper {'needed' if need else 'not needed'}: {why}")
+        print(f"{'':9s} UML: {vcan_uml.wrapper_plan().why}")
     return 0
 
 
@@ -226,6 +204,12 @@ def main(argv: Optional[List[str]] = None) -> int:
                     help="fetch Debian's kernel for the QEMU backend into the cache and exit")
     ap.add_argument("cmd", nargs=argparse.REMAINDER, help="-- CMD ARGS...")
     args = ap.parse_args(argv)
+    try:
+        vcan_uml.xstate_setting()
+        if args.mode == "auto":
+            choice.order(os.environ.get("ATTEKF_VCAN_MODE", "").strip() or "auto")
+    except ValueError as e:
+        ap.error(f"{e} ($ATTEKF_VCAN_MODE, $ATTEKF_UML_XSTATE)")
     if args.backends:
         return _print_backends()
     if args.prepare:
@@ -245,10 +229,6 @@ def main(argv: Optional[List[str]] = None) -> int:
             ap.error("no command given (use -- CMD ARGS... or --shell 'CMD')")
     if args.repeat < 1:
         ap.error("--repeat must be at least 1")
-    try:
-        vcan_uml.xstate_setting()
-    except ValueError as e:
-        ap.error(str(e))
     rc = 0
     for k in range(args.repeat):
         try:

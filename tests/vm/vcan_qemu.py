@@ -1,4 +1,4 @@
-"""The QEMU backend of hal/tools/vcan_run.py (docs/hil.md): a full Linux guest, for machines
+"""The QEMU backend of vcan_run.py (docs/hil.md): a full Linux guest, for machines
 where neither the host kernel nor user-mode Linux can run vcan.
 
 ``qemu-system-x86_64 -machine q35`` boots Debian's own ``linux-image-amd64`` kernel (it has
@@ -16,9 +16,11 @@ bzImage, unpacked once on the host: decompressing it in the emulated guest took 
 One virtual CPU, like UML: under TCG a second one doubled the emulation's CPU time (Python
 started in 3.9-6.8 s instead of 1.6-3.9 s on a loaded 2-core host).
 
-KVM is used only where the CPU has the vmx or svm flag and /dev/kvm is usable, and only if
-the guest prints on its console within KVM_MARKER_S seconds (a /dev/kvm without working
-virtualisation hangs a guest silently); otherwise TCG (emulation).
+KVM is tried only where the CPU has the vmx or svm flag and /dev/kvm is usable
+(vcan_choice.kvm_precheck); a guest that prints nothing on its console within KVM_MARKER_S
+seconds is given up. A /dev/kvm without working virtualisation has been seen both to hang a
+guest silently and to make QEMU exit at once with an error (docs/hil.md, "Machines seen"):
+either way the runner reports what it saw and goes on to TCG (emulation).
 
 Standard library only."""
 
@@ -38,6 +40,7 @@ import tempfile
 import zlib
 from typing import Dict, List, Optional, Sequence, Tuple
 
+import vcan_choice as choice
 import vcan_guest as g
 
 QEMU = "qemu-system-x86_64"
@@ -361,35 +364,32 @@ def available() -> Optional[str]:
         return "busybox not found (Debian package busybox-static)"
     if cached_kernel() is None:
         return (f"no guest kernel in {kernel_cache()} (scripts/setup.sh fetches Debian's "
-                f"{KERNEL_PACKAGE}; or hal/tools/vcan_run.py --prepare)")
+                f"{KERNEL_PACKAGE}; or tests/vm/vcan_run.py --prepare)")
     return None
 
 
-def kvm_usable() -> Optional[str]:
-    """Why KVM is not to be tried here, or None."""
-    flags = g.cpu_flags()
-    if not ({"vmx", "svm"} & flags):
-        return "the CPU has no vmx/svm flag" + (" (/dev/kvm exists)" if os.path.exists("/dev/kvm") else "")
-    if not os.path.exists("/dev/kvm"):
-        return "no /dev/kvm (kvm module not loaded)"
-    if not os.access("/dev/kvm", os.R_OK | os.W_OK):
-        return "/dev/kvm is not accessible to this user (group kvm)"
-    return None
+def kvm_device() -> Tuple[bool, bool]:
+    """Whether /dev/kvm exists, and whether this user may open it read-write."""
+    return os.path.exists("/dev/kvm"), os.access("/dev/kvm", os.R_OK | os.W_OK)
+
+
+def kvm_usable(check_flags: bool = True) -> Optional[str]:
+    """Why KVM is not to be tried here, or None (check_flags=False: try it on a CPU without
+    vmx/svm too)."""
+    return choice.kvm_precheck(g.cpu_flags(), *kvm_device(), check_flags=check_flags)
 
 
 def run(cmd: str, ifaces: Sequence[str], timeout: float, env: Dict[str, str], cwd: str,
-        keep: bool, accel: str, mem_mb: int = DEFAULT_MEM_MB, smp: int = 1) -> g.Result:
-    """Runs cmd in a QEMU guest; accel "kvm" or "tcg". Raises g.BackendError."""
+        keep: bool, accel: str, mem_mb: int = DEFAULT_MEM_MB, smp: int = 1) -> choice.Result:
+    """Runs cmd in a QEMU guest; accel "kvm" or "tcg" (vcan_run checks first that it is
+    usable: available(), kvm_usable()). Raises BackendError."""
     backend = f"qemu-{accel}"
-    why = available() or (kvm_usable() if accel == "kvm" else None)
-    if why:
-        raise g.BackendError(backend, f"not usable: {why}")
     kernel = cached_kernel() or {}
     try:
         image = boot_image(kernel)
         rd = initramfs(kernel)
     except (RuntimeError, OSError, ValueError) as e:
-        raise g.BackendError(backend, f"cannot build the initramfs: {e}") from e
+        raise choice.BackendError(backend, f"cannot build the initramfs: {e}") from e
     work = g.WorkDir(keep)
     try:
         # busybox (static) powers off at once; the sysrq trigger is the fallback
@@ -408,8 +408,7 @@ def run(cmd: str, ifaces: Sequence[str], timeout: float, env: Dict[str, str], cw
                 "-device", "virtio-9p-pci,fsdev=hostroot,mount_tag=hostroot"]
         boot = g.run_guest(argv, work, timeout, output="qemu.log", watch="console.log",
                            marker_s=KVM_MARKER_S if accel == "kvm" else None)
-        console = work.read("console.log")
-        res = g.finish(work, boot, backend, timeout, console, extra=work.read("qemu.log"))
+        res = choice.outcome(backend, boot, g.collect(work, boot, extra="qemu.log"), timeout)
         res.notes.append(f"{backend}: kernel {kernel['package'].split()[0]}")
         return res
     finally:

@@ -9,16 +9,17 @@
 #        bus.log      every frame on the bus (candump format)
 #        record.json  recorder's view: frames, sequence gaps, bus latency (attekf record --stats)
 #        replay.json  what was sent and what failed (attekf replay --stats)
-#        bounce.log   when the interface went down/up (with --bounce: AFTER_S after the first
-#                     frame of the replay, for DOWN_S)
+#        bounce.log   when the interface went down/up (with --bounce: down when the replay
+#                     reaches AFTER_S of the stream, up DOWN_S later, and not before the
+#                     replay reaches AFTER_S + DOWN_S)
 #        ifstats.txt  the interface's kernel statistics before the replay and at the end
 #                     (rx_dropped counts frames the kernel dropped, e.g. sent as it went down)
 #
-#   hal/tools/hil_scenario.sh OUTDIR IFACE INPUT [--speed X] [--bounce AFTER_S,DOWN_S]
+#   tests/vm/hil_scenario.sh OUTDIR IFACE INPUT [--speed X] [--bounce AFTER_S,DOWN_S]
 #                             [--node-arg ARG]...
 #
 # Runs wherever IFACE exists: a real can0, a vcan0 on a kernel with CAN, or inside a guest of
-# hal/tools/vcan_run.py (user-mode Linux or QEMU). Environment: ATTEKF_NODE (node binary, default
+# tests/vm/vcan_run.py (user-mode Linux or QEMU). Environment: ATTEKF_NODE (node binary, default
 # build/host/firmware/app/attekf-node), ATTEKF_PYTHON (interpreter with the attekf package,
 # default .venv/bin/python). Exit status: 0 if every step ran (the checks are the tests' job),
 # 1 if a step failed (its log says why), 2 usage.
@@ -42,7 +43,8 @@ PY="${ATTEKF_PYTHON:-$ROOT/.venv/bin/python}"
 [ -x "$NODE" ] || { echo "hil_scenario: $NODE not built" >&2; exit 1; }
 [ -x "$PY" ] || { echo "hil_scenario: no Python at $PY" >&2; exit 1; }
 mkdir -p "$OUT"
-rm -f "$OUT"/node.ready "$OUT"/record.ready "$OUT"/replay.started
+rm -f "$OUT"/node.ready "$OUT"/record.ready "$OUT"/replay.started "$OUT"/replay.down "$OUT"/replay.up \
+  "$OUT"/replay.done
 
 "$NODE" -i "$IFACE" --ready-file "$OUT/node.ready" --stats "$OUT/node.json" "${NODE_ARGS[@]}" \
   > "$OUT/node.log" 2>&1 &
@@ -77,17 +79,37 @@ rm -f "$OUT/ifstats.txt"
 ifstats start
 
 BOUNCE_PID=""
+MARK=()
 if [ -n "$BOUNCE" ]; then
+  # By the stream's time as well as the clock's: a replay that lags (a loaded machine) would
+  # otherwise meet the outage elsewhere in the stream, and lose more of it as it catches up;
+  # and an `ip` that starts late still leaves the interface down DOWN_S. The waits start no
+  # process (`read -t` on a pipe nobody writes is the pause) and `ip` comes before the time
+  # is logged: in a guest with one virtual CPU shared with the replay and the node, each
+  # process started costs up to a second on a loaded host.
   AFTER="${BOUNCE%,*}"; DOWN="${BOUNCE#*,}"
-  ( for _ in $(seq 1 1200); do [ -f "$OUT/replay.started" ] && break; sleep 0.02; done
-    sleep "$AFTER"; echo "down $(date +%s.%N)"; ip link set "$IFACE" down; sleep "$DOWN";
-    ip link set "$IFACE" up; echo "up $(date +%s.%N)" ) > "$OUT/bounce.log" 2>&1 &
+  MARK=(--mark "$AFTER:$OUT/replay.down" --mark "$(awk -v a="$AFTER" -v d="$DOWN" 'BEGIN { print a + d }'):$OUT/replay.up")
+  (
+    coproc PAUSER { exec sleep 3600; }
+    trap 'kill "$PAUSER_PID" 2>/dev/null' EXIT
+    pause() {   # read's time-out on a pipe nobody writes; sleep if that pipe is gone
+      read -r -t "$1" -u "${PAUSER[0]}" 2> /dev/null
+      [ $? -gt 128 ] || sleep "$1"
+    }
+    wait_for() { until [ -f "$1" ]; do [ -f "$OUT/replay.done" ] && return 1; pause 0.01; done; }
+    wait_for "$OUT/replay.down" || exit 0
+    ip link set "$IFACE" down; echo "down $EPOCHREALTIME"
+    pause "$DOWN"
+    wait_for "$OUT/replay.up"
+    ip link set "$IFACE" up; echo "up $EPOCHREALTIME"
+  ) > "$OUT/bounce.log" 2>&1 &
   BOUNCE_PID=$!
 fi
 
 "$PY" -m attekf replay -q "$INPUT" -i socketcan -c "$IFACE" --speed "$SPEED" \
-  --stats "$OUT/replay.json" --started-file "$OUT/replay.started" > "$OUT/replay.log" 2>&1
+  --stats "$OUT/replay.json" --started-file "$OUT/replay.started" "${MARK[@]}" > "$OUT/replay.log" 2>&1
 REPLAY_RC=$?
+touch "$OUT/replay.done"
 [ -n "$BOUNCE_PID" ] && wait "$BOUNCE_PID"
 
 sleep 0.5   # the outputs of the last samples

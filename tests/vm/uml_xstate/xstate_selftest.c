@@ -2,6 +2,10 @@
  *
  *   LD_PRELOAD=libxstate_ptrace.so [ATTEKF_XSTATE_WRAP=auto|full|pass] xstate_selftest
  *   xstate_selftest --info          print this CPU's XSAVE layout (CPUID leaf 0xD) and exit
+ *   xstate_selftest --probe BYTES   ask the kernel itself (no wrapper) whether it accepts an
+ *                                   NT_X86_XSTATE write of BYTES to a stopped child, as UML
+ *                                   does with its buffer; prints probe_bytes= host_bytes= errno=
+ *                                   (0: accepted) and exits 0 when the probe could run
  *
  * It stops a child of its own and moves the child's FPU state with ptrace(), through the
  * wrapper, the way user-mode Linux does, with buffers of the host's size and smaller ones
@@ -238,6 +242,74 @@ static void test_sizes(pid_t pid, int mode, unsigned char *ref, unsigned char *w
     }
 }
 
+/* A child of ours, stopped under ptrace (the way UML's guest processes are); 0 on failure. */
+static pid_t stopped_child(void)
+{
+    int status;
+    pid_t pid = fork();
+    if (pid < 0) {
+        perror("xstate_selftest: fork");
+        return 0;
+    }
+    if (pid == 0) {
+        if (syscall(SYS_ptrace, (long)PTRACE_TRACEME, 0L, 0L, 0L) != 0) {
+            _exit(3);
+        }
+        (void)raise(SIGSTOP);
+        for (;;) {
+            pause();
+        }
+    }
+    if (waitpid(pid, &status, 0) != pid || !WIFSTOPPED(status)) {
+        fprintf(stderr, "xstate_selftest: the child did not stop under ptrace\n");
+        return 0;
+    }
+    return pid;
+}
+
+static void end_child(pid_t pid)
+{
+    int status;
+    (void)kill(pid, SIGKILL);
+    (void)waitpid(pid, &status, 0);
+}
+
+/* The kernel's own answer to a write of `bytes`, read first with the same size (UML reads its
+ * state, then writes it back): direct system calls, so a preloaded wrapper plays no part. */
+static int probe(const char *arg)
+{
+    static unsigned char buf[65536];
+    char *end = NULL;
+    unsigned long bytes = strtoul(arg, &end, 10);
+    size_t len;
+    long r;
+    int e = 0;
+    pid_t pid;
+    if (end == arg || *end != '\0' || bytes < XS_MIN_BYTES || bytes > sizeof buf || bytes % 8u != 0u) {
+        fprintf(stderr, "xstate_selftest: --probe: BYTES must be a multiple of 8 from %u to %lu, not '%s'\n",
+                XS_MIN_BYTES, (unsigned long)sizeof buf, arg);
+        return 2;
+    }
+    pid = stopped_child();
+    if (pid == 0) {
+        return 2;
+    }
+    len = (size_t)bytes;
+    r = sys_regset(PTRACE_GETREGSET, pid, buf, &len);
+    if (r != 0) {
+        e = errno;
+        end_child(pid);
+        fprintf(stderr, "xstate_selftest: --probe: PTRACE_GETREGSET NT_X86_XSTATE failed: %s\n", strerror(e));
+        return 2;
+    }
+    len = (size_t)bytes;
+    r = sys_regset(PTRACE_SETREGSET, pid, buf, &len);
+    e = (r == 0) ? 0 : errno;
+    end_child(pid);
+    printf("probe_bytes=%lu host_bytes=%lu errno=%d\n", bytes, (unsigned long)lay.size_bytes, e);
+    return 0;
+}
+
 static int run(int mode)
 {
     static unsigned char base[65536];
@@ -253,23 +325,8 @@ static int run(int mode)
     unsigned int i;
     long word;
     long r;
-    int status;
-    pid_t pid = fork();
-    if (pid < 0) {
-        perror("xstate_selftest: fork");
-        return 2;
-    }
+    pid_t pid = stopped_child();
     if (pid == 0) {
-        if (syscall(SYS_ptrace, (long)PTRACE_TRACEME, 0L, 0L, 0L) != 0) {
-            _exit(3);
-        }
-        (void)raise(SIGSTOP);
-        for (;;) {
-            pause();
-        }
-    }
-    if (waitpid(pid, &status, 0) != pid || !WIFSTOPPED(status)) {
-        fprintf(stderr, "xstate_selftest: the child did not stop under ptrace\n");
         return 2;
     }
     /* other requests pass through */
@@ -323,8 +380,7 @@ static int run(int mode)
     len = host;
     (void)sys_regset(PTRACE_SETREGSET, pid, ref, &len);
     test_sizes(pid, mode, ref, work, after);
-    (void)kill(pid, SIGKILL);
-    (void)waitpid(pid, &status, 0);
+    end_child(pid);
     printf("xstate_selftest: %d checks, %d failed\n", n_checks, n_failed);
     return n_failed == 0 ? 0 : 1;
 }
@@ -344,6 +400,9 @@ int main(int argc, char **argv)
     }
     if (argc > 1 && strcmp(argv[1], "--info") == 0) {
         return info();
+    }
+    if (argc > 2 && strcmp(argv[1], "--probe") == 0) {
+        return probe(argv[2]);
     }
     sym = dlsym(RTLD_DEFAULT, "attekf_xstate_stats");
     if (sym == NULL) {

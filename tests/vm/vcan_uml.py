@@ -1,15 +1,17 @@
-"""The user-mode Linux backend of hal/tools/vcan_run.py (docs/hil.md).
+"""The user-mode Linux backend of vcan_run.py (docs/hil.md).
 
 Debian's ``linux.uml`` boots with the host's ``/`` as its root file system (hostfs) in about
 2 s and loads the ``can``, ``can-raw``, ``can-bcm``, ``can-dev`` and ``vcan`` modules shipped
 with it. UML kernels before 6.13 move their guests' FPU state with ptrace(NT_X86_XSTATE) in a
-buffer sized at build time (2,696 bytes), which a host kernel refuses to write when its own
-XSAVE area is larger (11,008 bytes on a CPU with AMX): the first guest process dies with
-``ptrace set fp regs failed, errno = 14`` and the guest panics. There the boot runs with the
-ptrace wrapper of hal/tools/uml_xstate/ preloaded, built from source on first use into the
-project's cache. $ATTEKF_UML_XSTATE: auto (default: the wrapper where the UML version and the
-CPU need it, and one retry with it after that console line), on, full (the wrapper forced
-through its host-sized path, which tests it on any CPU), off (never).
+buffer sized at build time, which a host kernel refuses to write (EFAULT) when its own XSAVE
+area is larger (a CPU with AMX): the first guest process dies with ``ptrace set fp regs
+failed, errno = 14`` and the guest panics. Whether this host refuses is asked of the kernel
+itself (uml_xstate/xstate_selftest --probe: the same write, to a stopped child of ours); where
+it does, the boot runs with the ptrace wrapper of uml_xstate/ preloaded, built from source on
+first use into the project's cache. The decision is vcan_choice.wrapper_plan;
+$ATTEKF_UML_XSTATE: auto (default: the wrapper where the kernel refuses UML's write, and one
+retry with it after that panic), on, full (the wrapper forced through its host-sized path,
+which tests it on any CPU), off (never).
 
 Standard library only."""
 
@@ -22,6 +24,7 @@ import shutil
 import subprocess
 from typing import Dict, List, Optional, Sequence, Tuple
 
+import vcan_choice as choice
 import vcan_guest as g
 
 UML_KERNEL = "linux.uml"
@@ -29,16 +32,12 @@ UML_MODULES = "/usr/lib/uml/modules"
 # Load order matters (dependencies); can-bcm is what python-can's send_periodic needs.
 UML_MODULE_FILES = ("net/can/can.ko", "net/can/can-raw.ko", "net/can/can-bcm.ko",
                     "drivers/net/can/dev/can-dev.ko", "drivers/net/can/vcan.ko")
-# The XSTATE buffer of Debian bookworm's linux.uml 6.1 (its calls, logged by the wrapper).
-UML_XSTATE_BYTES = 2696
-UML_XSTATE_FIXED_IN = (6, 13)     # sizes the buffer from the host's CPUID at run time
 XSTATE_SOURCES = ("xstate_ptrace.c", "xstate_selftest.c", "xstate_layout.h")
 XSTATE_CFLAGS = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Wpedantic", "-Wconversion", "-Wshadow",
                  "-Wdouble-promotion", "-Werror"]
-FP_REGS_FAILED = "ptrace set fp regs failed"
-XSTATE_SETTINGS = ("auto", "on", "full", "off")
 
 _version: Optional[Tuple[int, ...]] = None
+_probe: Optional[choice.Probe] = None
 
 
 def available() -> Optional[str]:
@@ -102,46 +101,36 @@ def build_xstate_tools() -> Dict[str, str]:
     return paths
 
 
-def host_xsave_bytes() -> Optional[int]:
-    """This CPU's XSAVE area for ptrace (CPUID leaf 0xD), from the self-test's --info; None
-    if it cannot be told (no compiler)."""
-    try:
-        tools = build_xstate_tools()
-        out = subprocess.run([tools["selftest"], "--info"], capture_output=True, text=True, timeout=20).stdout
-    except (RuntimeError, OSError, subprocess.TimeoutExpired):
-        return None
-    m = re.search(r"host_bytes=(\d+)", out)
-    return int(m.group(1)) if m else None
+def probe_xstate_write() -> choice.Probe:
+    """The host kernel's answer to an XSTATE write of UML's buffer size (asked once per
+    process)."""
+    global _probe
+    if _probe is None:
+        try:
+            tools = build_xstate_tools()
+            p = subprocess.run([tools["selftest"], "--probe", str(choice.UML_XSTATE_BYTES)],
+                               capture_output=True, text=True, timeout=20, stdin=subprocess.DEVNULL)
+            _probe = choice.parse_probe(p.returncode, p.stdout, p.stderr)
+        except (RuntimeError, OSError, subprocess.TimeoutExpired) as e:
+            _probe = choice.parse_probe(None, "", str(e))
+    return _probe
 
 
 def xstate_setting() -> str:
-    s = os.environ.get("ATTEKF_UML_XSTATE", "auto").strip().lower() or "auto"
-    if s not in XSTATE_SETTINGS:
-        raise ValueError(f"ATTEKF_UML_XSTATE must be one of {', '.join(XSTATE_SETTINGS)}, not {s!r}")
-    return s
+    return choice.xstate_setting(os.environ.get("ATTEKF_UML_XSTATE"))
 
 
-def wrapper_needed() -> Tuple[bool, str]:
-    """Whether this UML on this CPU needs the wrapper, and why (one line)."""
-    v = version()
-    vs = ".".join(map(str, v)) or "of unknown version"
-    if v and v[:2] >= UML_XSTATE_FIXED_IN:
-        return False, f"UML {vs} sizes its XSTATE buffer at run time"
-    n = host_xsave_bytes()
-    if n is None:
-        amx = "amx_tile" in g.cpu_flags()
-        return amx, (f"CPU has AMX (amx_tile), UML {vs} < 6.13" if amx
-                     else "XSAVE size unknown (no compiler) and no AMX flag")
-    if n == UML_XSTATE_BYTES:
-        return False, f"host XSAVE area {n} bytes, the same as UML {vs}'s buffer"
-    return True, f"host XSAVE area {n} bytes (CPUID 0xD), UML {vs} < 6.13 writes {UML_XSTATE_BYTES}"
+def wrapper_plan() -> choice.WrapperPlan:
+    """Whether this UML on this host boots with the wrapper ($ATTEKF_UML_XSTATE, the UML
+    version, the kernel's answer to the probe)."""
+    return choice.wrapper_plan(xstate_setting(), version(), probe_xstate_write)
 
 
 # ---------------------------------------------------------------------------------------------
 # Boot
 # ---------------------------------------------------------------------------------------------
 def _boot(cmd: str, ifaces: Sequence[str], timeout: float, env: Dict[str, str], cwd: str, mem: str,
-          keep: bool, wrap: Optional[str]) -> g.Result:
+          keep: bool, wrap: Optional[str]) -> choice.Result:
     """One boot; wrap: None, or the wrapper's mode ("auto" or "full")."""
     work = g.WorkDir(keep)
     try:
@@ -167,12 +156,11 @@ def _boot(cmd: str, ifaces: Sequence[str], timeout: float, env: Dict[str, str], 
             penv["ATTEKF_XSTATE_WRAP"] = wrap
             penv["ATTEKF_XSTATE_LOG"] = work.file("xstate.log")
         boot = g.run_guest(argv, work, timeout, env=penv)
-        console = work.read("console.log")
         if wrap:
             log = work.read("xstate.log").strip()
             notes.append(f"uml: XSTATE wrapper (mode {wrap}): "
                          + (log.splitlines()[-1].split(": ", 2)[-1] if log else "no XSTATE call logged"))
-        res = g.finish(work, boot, "uml", timeout, console)
+        res = choice.outcome("uml", boot, g.collect(work, boot), timeout)
         res.notes += notes
         return res
     finally:
@@ -180,34 +168,23 @@ def _boot(cmd: str, ifaces: Sequence[str], timeout: float, env: Dict[str, str], 
 
 
 def run(cmd: str, ifaces: Sequence[str], timeout: float, env: Dict[str, str], cwd: str, mem: str,
-        keep: bool, log) -> g.Result:
-    """Runs cmd in a UML guest; raises g.BackendError when UML cannot run it (reason: the
-    root cause, e.g. the console's panic line)."""
-    why = available()
-    if why:
-        raise g.BackendError("uml", f"not usable: {why}")
-    setting = xstate_setting()
-    notes: List[str] = []
-    if setting == "off":
-        wrap = None
-    elif setting in ("on", "full"):
-        wrap = "full" if setting == "full" else "auto"
-    else:
-        need, why_need = wrapper_needed()
-        wrap = "auto" if need else None
-        notes.append(f"uml: XSTATE wrapper {'used' if need else 'not needed'}: {why_need}")
+        keep: bool, log) -> choice.Result:
+    """Runs cmd in a UML guest; raises BackendError when UML cannot run it (reason: the root
+    cause, e.g. the console's panic line)."""
+    plan = wrapper_plan()
+    notes = [f"uml: {plan.why}"]
     try:
         try:
-            res = _boot(cmd, ifaces, timeout, env, cwd, mem, keep, wrap)
-        except g.BackendError as e:
-            if not (setting == "auto" and wrap is None and e.boot_failed and FP_REGS_FAILED in e.console):
+            res = _boot(cmd, ifaces, timeout, env, cwd, mem, keep, plan.first)
+        except choice.BackendError as e:
+            if not choice.retry_with_wrapper(plan, e):
                 raise
             log(f"uml: boot failed without the XSTATE wrapper ({e.reason}); retrying with it")
             notes.append(f"uml: retried with the XSTATE wrapper after: {e.reason}")
             res = _boot(cmd, ifaces, timeout, env, cwd, mem, keep, "auto")
     except RuntimeError as e:            # the wrapper could not be built
-        if isinstance(e, g.VcanError):
+        if isinstance(e, choice.VcanError):
             raise
-        raise g.BackendError("uml", f"needs the XSTATE wrapper, which cannot be built: {e}") from e
+        raise choice.BackendError("uml", f"needs the XSTATE wrapper, which cannot be built: {e}") from e
     res.notes = notes + res.notes
     return res

@@ -1,6 +1,6 @@
-"""What the vcan backends of hal/tools/vcan_run.py share: the result and error types, the
-guest's init script, the work directory, the wait for a booting guest, and the search of a
-guest console for the line that says why a boot failed.
+"""What the guest backends of vcan_run.py (user-mode Linux, QEMU) share: the guest's init
+script, the work directory, the wait for a booting guest and the collection of what it left
+behind (turned into a result or a root cause by vcan_choice.outcome).
 
 A guest (user-mode Linux or QEMU) sees the host's files at the same paths; the init script
 runs the command in the caller's directory with the caller's environment and sends its
@@ -13,49 +13,20 @@ Standard library only."""
 from __future__ import annotations
 
 import os
-import re
 import shlex
 import shutil
 import signal
 import subprocess
 import tempfile
 import time
-from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Sequence, Union
 
-EXIT_INFRA = 125          # could not run the command at all
+from vcan_choice import EXIT_INFRA, Boot, GuestFiles, parse_cpu_flags
+
 # Environment variables not passed into a guest (meaningless or harmful there).
 _ENV_SKIP = {"TERM", "TERMCAP", "COLUMNS", "LINES", "SHLVL", "_", "OLDPWD", "PWD",
              "SSH_AUTH_SOCK", "SSH_CONNECTION", "SSH_CLIENT", "SSH_TTY", "DISPLAY", "LD_PRELOAD"}
 PATH_GUEST = "/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin"
-
-
-class VcanError(RuntimeError):
-    """The command could not be run (no backend, boot failure, timeout)."""
-
-
-class BackendError(VcanError):
-    """One backend could not run the command. boot_failed: it never reached the command
-    (trying the next backend makes sense); reason: the root cause in one line."""
-
-    def __init__(self, backend: str, reason: str, boot_failed: bool = True, console: str = ""):
-        super().__init__(f"{backend}: {reason}")
-        self.backend = backend
-        self.reason = reason
-        self.boot_failed = boot_failed
-        self.console = console
-
-
-@dataclass
-class Result:
-    returncode: int
-    stdout: str
-    stderr: str
-    mode: str             # backend: "host", "uml", "qemu-kvm" or "qemu-tcg"
-    seconds: float        # wall time, boot included
-    console: str = ""     # the guest's console (kernel messages), for diagnosing
-    boot_seconds: float = 0.0            # start of the backend to the command's start
-    notes: List[str] = field(default_factory=list)   # fallbacks and adaptations, one line each
 
 
 def as_shell(cmd: Union[str, Sequence[str]]) -> str:
@@ -87,10 +58,7 @@ def find_tool(name: str) -> Optional[str]:
 
 
 def cpu_flags() -> set:
-    for line in read_text("/proc/cpuinfo").splitlines():
-        if line.startswith("flags"):
-            return set(line.split(":", 1)[1].split())
-    return set()
+    return parse_cpu_flags(read_text("/proc/cpuinfo"))
 
 
 class WorkDir:
@@ -121,12 +89,12 @@ def init_script(work: str, cmd: str, ifaces: Sequence[str], env: Dict[str, str],
     q = shlex.quote
     lines = [
         "#!/bin/sh",
-        "# init of a vcan guest written by hal/tools/vcan_run.py",
+        "# init of a vcan guest written by tests/vm/vcan_run.py",
         f"PATH={PATH_GUEST}; export PATH",
         f"W={q(work)}",
         f"off() {{ {off}; }}",
-        "fail() { echo \"vcan_run (guest): $*\" >> \"$W/setup.log\"; echo 125 > \"$W/status\"; "
-        "sync; off 125; }",
+        f"fail() {{ echo \"vcan_run (guest): $*\" >> \"$W/setup.log\"; echo {EXIT_INFRA} > \"$W/status\"; "
+        f"sync; off {EXIT_INFRA}; }}",
     ]
     lines += list(prologue)
     lines.append("ip link set lo up >> \"$W/setup.log\" 2>&1")
@@ -147,15 +115,6 @@ def init_script(work: str, cmd: str, ifaces: Sequence[str], env: Dict[str, str],
         "off $rc",
     ]
     return "\n".join(lines) + "\n"
-
-
-@dataclass
-class Boot:
-    returncode: Optional[int]   # the backend process's exit status (None: killed)
-    seconds: float
-    boot_seconds: float         # until `started` appeared (0 if it never did)
-    timed_out: bool
-    marker_missing: bool        # no console output within marker_s
 
 
 def run_guest(argv: List[str], work: WorkDir, timeout: float, env: Optional[Dict[str, str]] = None,
@@ -202,54 +161,9 @@ def run_guest(argv: List[str], work: WorkDir, timeout: float, env: Optional[Dict
                 seconds=seconds, boot_seconds=boot_s, timed_out=timed_out, marker_missing=marker_missing)
 
 
-# Lines of guest output that say why a guest died, most specific first; the kernel's panic
-# line, when there is one, is added after the cause.
-_CAUSES = [
-    re.compile(r"[^\n]*ptrace set fp regs failed[^\n]*"),
-    re.compile(r"[^\n]*ptrace [^\n]* failed[^\n]*"),
-    re.compile(r"vcan_run \(guest\):[^\n]*"),
-    re.compile(r"VFS: Unable to mount[^\n]*"),
-    re.compile(r"[^\n]*(?:mount|insmod|switch_root)[^\n]*(?:failed|No such|Invalid|error)[^\n]*", re.I),
-    re.compile(r"qemu-system-\w+: [^\n]*"),
-    re.compile(r"Failed to execute [^\n]*|BUG: [^\n]*|Oops: [^\n]*"),
-]
-_PANIC = re.compile(r"Kernel panic - not syncing: [^\n]*")
-
-
-def root_cause(*texts: str) -> str:
-    """The line of guest output that says why it failed, and the kernel's panic line when
-    there is one; '' if nothing matched."""
-    text = "\n".join(t.replace("\r", "") for t in texts if t)
-    found: List[str] = []
-    for pat in _CAUSES:
-        m = pat.search(text)
-        if m:
-            found.append(re.sub(r"^\[ *[0-9.]+\] ", "", m.group(0).strip()))
-            break
-    m = _PANIC.search(text)
-    if m:
-        found.append(m.group(0).strip())
-    return "; ".join(found)
-
-
-def finish(work: WorkDir, boot: Boot, backend: str, timeout: float, console: str,
-           extra: str = "") -> Result:
-    """Turns a finished guest into a Result, or a BackendError naming the root cause."""
-    status = work.read("status").strip()
-    setup = work.read("setup.log").strip()
-    started = bool(boot.boot_seconds) or os.path.exists(work.file("started"))
-    if boot.marker_missing:
-        raise BackendError(backend, f"the guest printed nothing on its console in {boot.seconds:.1f} s "
-                                    f"(hangs before the kernel's first message)", console=console)
-    if boot.timed_out:
-        where = "while running the command" if started else "before the command started"
-        cause = root_cause(setup, console, extra)
-        raise BackendError(backend, f"timed out after {timeout:g} s {where}"
-                           + (f" ({cause})" if cause else ""), boot_failed=not started, console=console)
-    if not status or (status == str(EXIT_INFRA) and "vcan_run (guest)" in setup):
-        cause = root_cause(setup, console, extra) or f"console tail: {console.strip()[-300:]!r}"
-        raise BackendError(backend, f"the guest did not report a status (exit {boot.returncode}): {cause}",
-                           boot_failed=not started, console=console)
-    return Result(returncode=int(status) if status.lstrip("-").isdigit() else EXIT_INFRA,
-                  stdout=work.read("stdout"), stderr=work.read("stderr"), mode=backend,
-                  seconds=boot.seconds, console=console, boot_seconds=boot.boot_seconds)
+def collect(work: WorkDir, boot: Boot, console: str = "console.log", extra: str = "") -> GuestFiles:
+    """What a finished guest left in its work directory (extra: the emulator's own log file)."""
+    return GuestFiles(status=work.read("status"), setup=work.read("setup.log").strip(),
+                      console=work.read(console), extra=work.read(extra) if extra else "",
+                      stdout=work.read("stdout"), stderr=work.read("stderr"),
+                      started=bool(boot.boot_seconds) or os.path.exists(work.file("started")))
