@@ -15,6 +15,7 @@
 #include <stdio.h>
 
 #include "att.h"
+#include "fx_count.h"
 #include "testsim.h"
 #include "unity.h"
 
@@ -40,14 +41,6 @@
 void setUp(void) {}
 void tearDown(void) {}
 
-static void maybe_corrupt(ts_rng_t *r, ekf_scalar_t v[3])
-{
-    if (ts_uniform(r) < 0.01) {
-        const int k = (int)(ts_uniform(r) * 3.0);
-        v[k] = ekf_from_double((ts_uniform(r) < 0.5) ? (double)NAN : (double)INFINITY);
-    }
-}
-
 static void test_random_inputs_keep_covariance_valid(void)
 {
     att_ekf_t f;
@@ -57,42 +50,14 @@ static void test_random_inputs_keep_covariance_valid(void)
     double min_pivot_seen = HUGE_VAL;
     int i;
     ts_rng_seed(&r, 20261123);
-    ekf_scalar_saturations_reset();
+    fx_count_reset();
     TEST_ASSERT_EQUAL_INT(EKF_OK, att_init(&f, s));
     for (k = 0; k < STEPS; ++k) {
         att_sample_t smp;
         ekf_status_t st;
         ekf_scalar_t P[ATT_N * ATT_N];
         double pivot;
-        const double u = ts_uniform(&r);
-        smp.dt = ekf_from_double(exp(ts_uniform_in(&r, log(1e-4), log(ekf_to_double(s->dt_max)))));
-        if (u < 0.0025) {
-            smp.dt = EKF_C(0);
-        } else if (u < 0.005) {
-            smp.dt = EKF_C(-0.01);
-        } else if (u < 0.0075) {
-            smp.dt = ekf_from_double((double)NAN);
-        } else if (u < 0.01) {
-            smp.dt = ekf_mul(s->dt_max, EKF_C(2));
-        }
-        for (i = 0; i < 3; ++i) {
-            smp.gyro[i] = ekf_from_double(ts_uniform_in(&r, -1.05 * ekf_to_double(s->gyro_range), 1.05 * ekf_to_double(s->gyro_range)));
-        }
-        ts_random_direction(&r, ts_uniform_in(&r, 0.0, 3.0 * ekf_to_double(s->gravity)), smp.accel);
-        ts_random_direction(&r, ts_uniform_in(&r, 0.0, 100.0), smp.mag);
-        maybe_corrupt(&r, smp.gyro);
-        maybe_corrupt(&r, smp.accel);
-        maybe_corrupt(&r, smp.mag);
-        smp.valid = 0u;
-        if (ts_uniform(&r) < 0.8) {
-            smp.valid |= ATT_HAS_GYRO;
-        }
-        if (ts_uniform(&r) < 0.8) {
-            smp.valid |= ATT_HAS_ACCEL;
-        }
-        if (ts_uniform(&r) < 0.8) {
-            smp.valid |= ATT_HAS_MAG;
-        }
+        ts_stress_sample(&r, s, &smp);
         st = att_step(&f, &smp, NULL);
         TEST_ASSERT_TRUE((unsigned)st <= (unsigned)EKF_SKIPPED);
         ++counts[st];
@@ -145,7 +110,7 @@ static void test_random_inputs_keep_covariance_valid(void)
      * 10 % of these steps): the checks above show that a saturation never reaches the state
      * or P. Inside the fixed-point envelope none occurs (tests/c/test_fixed_envelope.c,
      * docs/fixed_point.md). */
-    printf("saturation events: %lu\n", (unsigned long)ekf_scalar_saturations());
+    printf("saturation events: %lu\n", (unsigned long)fx_count_saturations());
     /* every repair flagged on the step it happened, and rare */
     TEST_ASSERT_EQUAL_UINT32((uint32_t)flagged, att_diag(&f)->cov_repairs);
     TEST_ASSERT_TRUE_MESSAGE(att_diag(&f)->cov_repairs <= MAX_REPAIRS, "the guard repaired P too often");

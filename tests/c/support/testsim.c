@@ -55,6 +55,48 @@ double ts_gauss(ts_rng_t *r)
     return sqrt(-2.0 * log(u1)) * cos(6.283185307179586 * u2);
 }
 
+static void maybe_corrupt(ts_rng_t *r, ekf_scalar_t v[3])
+{
+    if (ts_uniform(r) < 0.01) {
+        const int k = (int)(ts_uniform(r) * 3.0);
+        v[k] = ekf_from_double((ts_uniform(r) < 0.5) ? (double)NAN : (double)INFINITY);
+    }
+}
+
+void ts_stress_sample(ts_rng_t *r, const att_settings_t *s, att_sample_t *smp)
+{
+    const double u = ts_uniform(r);
+    int i;
+    smp->dt = ekf_from_double(exp(ts_uniform_in(r, log(1e-4), log(ekf_to_double(s->dt_max)))));
+    if (u < 0.0025) {
+        smp->dt = EKF_C(0);
+    } else if (u < 0.005) {
+        smp->dt = EKF_C(-0.01);
+    } else if (u < 0.0075) {
+        smp->dt = ekf_from_double((double)NAN);
+    } else if (u < 0.01) {
+        smp->dt = ekf_mul(s->dt_max, EKF_C(2));
+    }
+    for (i = 0; i < 3; ++i) {
+        smp->gyro[i] = ekf_from_double(ts_uniform_in(r, -1.05 * ekf_to_double(s->gyro_range), 1.05 * ekf_to_double(s->gyro_range)));
+    }
+    ts_random_direction(r, ts_uniform_in(r, 0.0, 3.0 * ekf_to_double(s->gravity)), smp->accel);
+    ts_random_direction(r, ts_uniform_in(r, 0.0, 100.0), smp->mag);
+    maybe_corrupt(r, smp->gyro);
+    maybe_corrupt(r, smp->accel);
+    maybe_corrupt(r, smp->mag);
+    smp->valid = 0u;
+    if (ts_uniform(r) < 0.8) {
+        smp->valid |= ATT_HAS_GYRO;
+    }
+    if (ts_uniform(r) < 0.8) {
+        smp->valid |= ATT_HAS_ACCEL;
+    }
+    if (ts_uniform(r) < 0.8) {
+        smp->valid |= ATT_HAS_MAG;
+    }
+}
+
 void ts_euler_to_R(double phi, double theta, double psi, double R[9])
 {
     const double cr = cos(phi), sr = sin(phi), cp = cos(theta), sp = sin(theta), cy = cos(psi), sy = sin(psi);

@@ -1,0 +1,247 @@
+/*
+ * test_att_bounds.c - every setting's accepted bounds are ones where the filter works: each
+ * setting at its lower and at its upper bound (att_setting_info, from
+ * att_settings_table.h), one at a time, the others at their defaults, through the random
+ * stress input (ts_stress_sample, the distribution of test_att_stress.c).
+ *
+ * After every step: the state finite; once aligned, P exactly symmetric and positive
+ * definite (Cholesky in double), every variance at least var_floor, the angles in their
+ * ranges. Per bound: the calls refused as numeric failures (diag.numeric) and the guard's
+ * repairs (diag.cov_repairs) at most the build's bounds below, which are about three times
+ * the largest count measured over all bounds (docs/reliability.md, "Settings at their
+ * bounds"). A bound that the settings check refuses with the other settings at their
+ * defaults (one that only makes sense together with another setting, such as a gravity
+ * above the default accelerometer range) must be in the list of such bounds; every other
+ * one must be accepted.
+ *
+ *     test_att_bounds_x [--steps N] [--seed S] [--report] [--only NAME [--lo V] [--hi V]]
+ * --steps: steps per bound (default STEPS); --report prints one line per bound (the figures
+ * of docs/reliability.md come from --steps 100000 --report); --only runs one setting's bounds,
+ * --lo / --hi replace them (to try a bound before it goes into the table).
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "att.h"
+#include "testsim.h"
+#include "unity.h"
+
+/* Steps per bound in the ctest: about 90 bounds per build in well under a minute (the
+ * fixed-point step costs several times a float one). */
+#if defined(EKF_SCALAR_FIXED)
+#define STEPS 10000L
+#else
+#define STEPS 20000L
+#endif
+
+/* Numeric refusals and guard repairs per 10^4 steps at any bound: about three times the
+ * largest measured (docs/reliability.md, "Settings at their bounds"). */
+#if defined(EKF_SCALAR_FIXED)
+#define MAX_NUMERIC_PER_1E4 3000L
+#define MAX_REPAIRS_PER_1E4 30L
+#elif defined(EKF_SCALAR_FLOAT)
+#define MAX_NUMERIC_PER_1E4 30L
+#define MAX_REPAIRS_PER_1E4 30L
+#else
+#define MAX_NUMERIC_PER_1E4 30L
+#define MAX_REPAIRS_PER_1E4 30L
+#endif
+
+static long g_steps = STEPS;
+static uint64_t g_seed = 20261123u;
+static int g_report;
+static const char *g_only;             /* --only NAME: that setting's bounds alone */
+static double g_lo = NAN, g_hi = NAN;  /* --lo V, --hi V: other values for them */
+
+void setUp(void) {}
+void tearDown(void) {}
+
+typedef struct {
+    long numeric, repairs, aligned_steps;
+    double min_pivot;
+    char failure[160]; /* the first broken invariant, empty if none */
+} run_t;
+
+static int angles_in_range(const ekf_scalar_t *x)
+{
+    return x[ATT_PHI] >= ekf_neg(EKF_PI) && x[ATT_PHI] < EKF_PI && x[ATT_PSI] >= ekf_neg(EKF_PI) && x[ATT_PSI] < EKF_PI &&
+           x[ATT_THETA] >= ekf_neg(EKF_HALF_PI) && x[ATT_THETA] <= EKF_HALF_PI;
+}
+
+/* The stress input through a filter with settings s; stops at the first broken invariant. */
+static void run_stress(const att_settings_t *s, long steps, run_t *out)
+{
+    static att_ekf_t f;
+    ts_rng_t r;
+    long k;
+    memset(out, 0, sizeof *out);
+    out->min_pivot = HUGE_VAL;
+    ts_rng_seed(&r, g_seed);
+    if (att_init(&f, s) != EKF_OK) {
+        snprintf(out->failure, sizeof out->failure, "att_init refused settings the check accepted");
+        return;
+    }
+    for (k = 0; k < steps; ++k) {
+        att_sample_t smp;
+        ekf_scalar_t P[ATT_N * ATT_N];
+        double pivot;
+        int i;
+        ts_stress_sample(&r, s, &smp);
+        if (k == steps / 10 && (att_flags(&f) & ATT_FLAG_ALIGNED) == 0u) {
+            /* not aligned yet (align_samples 65535: random directions average to no gravity
+             * direction): aligned from one sample at rest, so that the bound is tested too */
+            const ekf_scalar_t g[3] = {EKF_C(0), EKF_C(0), s->gravity}, m[3] = {EKF_C(20), EKF_C(0), EKF_C(-40)};
+            if (att_align(&f, g, m) != EKF_OK) {
+                snprintf(out->failure, sizeof out->failure, "att_align refused");
+                break;
+            }
+        }
+        (void)att_step(&f, &smp, NULL);
+        if (!ekf_all_finite(att_state(&f), ATT_N)) {
+            snprintf(out->failure, sizeof out->failure, "step %ld: state not finite", k);
+            break;
+        }
+        if ((att_flags(&f) & ATT_FLAG_ALIGNED) == 0u) {
+            continue;
+        }
+        ++out->aligned_steps;
+        att_get_covariance(&f, P);
+        if (!ts_is_symmetric_exact(P, ATT_N) || !ts_is_positive_definite(P, ATT_N, &pivot)) {
+            snprintf(out->failure, sizeof out->failure, "step %ld: P not symmetric positive definite", k);
+            break;
+        }
+        out->min_pivot = (pivot < out->min_pivot) ? pivot : out->min_pivot;
+        for (i = 0; i < ATT_N; ++i) {
+            if (!(P[i * ATT_N + i] >= s->var_floor)) {
+                snprintf(out->failure, sizeof out->failure, "step %ld: P[%d][%d] = %g below var_floor", k, i, i,
+                         ekf_to_double(P[i * ATT_N + i]));
+                break;
+            }
+        }
+        if (out->failure[0] == '\0' && !angles_in_range(att_state(&f))) {
+            snprintf(out->failure, sizeof out->failure, "step %ld: angles out of range", k);
+        }
+        if (out->failure[0] != '\0') {
+            break;
+        }
+    }
+    out->numeric = (long)att_diag(&f)->numeric;
+    out->repairs = (long)att_diag(&f)->cov_repairs;
+}
+
+/* 1 if setting i at value v (the others as in *base) passes att_setting_set and
+ * att_settings_check. */
+static int accepted(const att_settings_t *base, size_t i, ekf_scalar_t v)
+{
+    att_settings_t s = *base;
+    return att_setting_set(&s, i, v) == EKF_OK && att_settings_check(&s) == EKF_OK;
+}
+
+/* The accepted value of setting i closest to its bound b, found by bisection between b and
+ * the default d (accepted): b itself if accepted. A bound refused with the other settings at
+ * their defaults is one that only makes sense with another setting changed too (a gravity
+ * above the default accelerometer range), or one that the fixed-point build cannot represent
+ * (a noise whose square is below its resolution, a bound whose square saturates): the filter
+ * must work at the edge of what the check accepts. */
+static ekf_scalar_t effective_bound(size_t i, ekf_scalar_t b, ekf_scalar_t d)
+{
+    const att_settings_t *s = &att_default_settings;
+    const double bd = ekf_to_double(b), dd = ekf_to_double(d);
+    const int logs = bd > 0.0 && dd > 0.0;
+    double out = dd, in = bd; /* accepted, refused */
+    int k;
+    if (accepted(s, i, b)) {
+        return b;
+    }
+    for (k = 0; k < 80; ++k) {
+        const double mid = logs ? sqrt(out * in) : 0.5 * (out + in);
+        const ekf_scalar_t m = ekf_from_double(mid);
+        if (m == ekf_from_double(out) || m == ekf_from_double(in)) {
+            break;
+        }
+        if (accepted(s, i, m)) {
+            out = mid;
+        } else {
+            in = mid;
+        }
+    }
+    return ekf_from_double(out);
+}
+
+static void test_every_bound_works(void)
+{
+    const long max_numeric = MAX_NUMERIC_PER_1E4 * g_steps / 10000L, max_repairs = MAX_REPAIRS_PER_1E4 * g_steps / 10000L;
+    long worst_numeric = 0, worst_repairs = 0;
+    int failures = 0, narrowed = 0;
+    size_t i;
+    for (i = 0; i < att_setting_count(); ++i) {
+        const att_setting_info_t *info = att_setting_info(i);
+        int hi;
+        if (g_only != NULL && strcmp(g_only, info->name) != 0) {
+            continue;
+        }
+        for (hi = 0; hi < 2; ++hi) {
+            att_settings_t s = att_default_settings;
+            const double other = hi ? g_hi : g_lo;
+            ekf_scalar_t v = !isnan(other) ? ekf_from_double(other) : hi ? info->hi : info->lo, def;
+            run_t run;
+            TEST_ASSERT_EQUAL_INT(EKF_OK, att_setting_get(&s, i, &def));
+            if (info->type == ATT_SETTING_SCALAR) {
+                v = effective_bound(i, v, def);
+            }
+            if (v != (hi ? info->hi : info->lo)) {
+                ++narrowed;
+            }
+            if (att_setting_set(&s, i, v) != EKF_OK || att_settings_check(&s) != EKF_OK) {
+                printf("%s = %g (%s bound): refused by the settings check\n", info->name, ekf_to_double(v), hi ? "upper" : "lower");
+                ++failures;
+                continue;
+            }
+            run_stress(&s, g_steps, &run);
+            if (g_report) {
+                printf("%-22s %s %-12g numeric %6ld  repairs %4ld  aligned %6ld  min pivot %.2e%s%s\n", info->name,
+                       hi ? "hi" : "lo", ekf_to_double(v), run.numeric, run.repairs, run.aligned_steps, run.min_pivot,
+                       run.failure[0] ? "  FAILED: " : "", run.failure);
+            }
+            worst_numeric = (run.numeric > worst_numeric) ? run.numeric : worst_numeric;
+            worst_repairs = (run.repairs > worst_repairs) ? run.repairs : worst_repairs;
+            if (run.failure[0] != '\0' || run.numeric > max_numeric || run.repairs > max_repairs || run.aligned_steps == 0) {
+                printf("%s = %g (%s bound): %s; numeric %ld (at most %ld), repairs %ld (at most %ld), aligned steps %ld\n",
+                       info->name, ekf_to_double(v), hi ? "upper" : "lower", run.failure[0] ? run.failure : "counts",
+                       run.numeric, max_numeric, run.repairs, max_repairs, run.aligned_steps);
+                ++failures;
+            }
+        }
+    }
+    printf("%s: %zu settings, %d bounds refused with the defaults (run at the accepted value closest to them), %ld steps per bound; largest numeric %ld, repairs %ld\n",
+           EKF_SCALAR_NAME, att_setting_count(), narrowed, g_steps, worst_numeric, worst_repairs);
+    TEST_ASSERT_EQUAL_INT_MESSAGE(0, failures, "a setting's bound where the filter does not work (above)");
+}
+
+int main(int argc, char **argv)
+{
+    int i;
+    for (i = 1; i < argc; ++i) {
+        if (strcmp(argv[i], "--steps") == 0 && i + 1 < argc) {
+            g_steps = atol(argv[++i]);
+        } else if (strcmp(argv[i], "--seed") == 0 && i + 1 < argc) {
+            g_seed = strtoull(argv[++i], NULL, 10);
+        } else if (strcmp(argv[i], "--only") == 0 && i + 1 < argc) {
+            g_only = argv[++i];
+        } else if (strcmp(argv[i], "--lo") == 0 && i + 1 < argc) {
+            g_lo = atof(argv[++i]);
+        } else if (strcmp(argv[i], "--hi") == 0 && i + 1 < argc) {
+            g_hi = atof(argv[++i]);
+        } else if (strcmp(argv[i], "--report") == 0) {
+            g_report = 1;
+        } else {
+            fprintf(stderr, "usage: %s [--steps N] [--seed S] [--report] [--only NAME [--lo V] [--hi V]]\n", argv[0]);
+            return 2;
+        }
+    }
+    UNITY_BEGIN();
+    RUN_TEST(test_every_bound_works);
+    return UNITY_END();
+}
