@@ -28,10 +28,17 @@ ATT_FX_INLINE int32_t mul_hi_round(int32_t a, int32_t b)
 }
 
 /* w - 4 round(a b 2^-32), the rank-one update of a word by T_i v_j (Q2.30 x Q2.29 -> Q2.29),
- * saturated: in 64 bits, where the difference of two words of opposite sign fits. */
+ * saturated to +-INT32_MAX, never wrapped around, for any words: w - 4 t = 4 u + (w mod 4)
+ * with u = floor(w / 4) - t, which fits 32 bits (|t| < 2^30). u in (-2^29, 2^29) gives a
+ * word; beyond, the result is saturated (exactly where it leaves the word, but for the
+ * results -2^31 + 2 and -2^31 + 3, which become -2^31 + 1). */
 ATT_FX_INLINE int32_t sub_rank1(int32_t w, int32_t a, int32_t b)
 {
-    return att_fx_sat((int64_t)w - (int64_t)mul_hi_round(a, b) * 4);
+    const int32_t u = (w >> 2) - mul_hi_round(a, b);
+    if ((uint32_t)u + ((1u << 29) - 1u) < (1u << 30) - 1u) {
+        return (int32_t)(((uint32_t)u << 2) | ((uint32_t)w & 3u));
+    }
+    return (u > 0) ? INT32_MAX : -INT32_MAX;
 }
 
 /* Dot product of two 9-vectors of words, exact (nine multiply-accumulates). */
@@ -139,6 +146,16 @@ static void propagate_factor(att_cov_t *c, const ekf_nz_t *pat, int nnz, const e
             for (l = 0; l < ATT_N; ++l) { /* the rows F leaves: c'_il = A_il */
                 if (l < base || l >= base + NR) {
                     c->c[ix[l]] = a[r][l];
+                }
+            }
+        } else if (sh == -1) {
+            /* |A_rl| <= 2^30 (att_fx_block_row): doubled within the word but at +-2^30 */
+            for (l = 0; l < ATT_N; ++l) {
+                if (l < base || l >= base + NR) {
+                    const int32_t al1 = a[r][l];
+                    c->c[ix[l]] = ((uint32_t)al1 + ((1u << 30) - 1u) < (1u << 31) - 1u) ? (int32_t)((uint32_t)al1 << 1)
+                                  : (al1 > 0)                                          ? INT32_MAX
+                                                                                       : -INT32_MAX;
                 }
             }
         } else if (sh > 0 && sh < 32) {
@@ -399,8 +416,15 @@ static ekf_status_t update(att_cov_t *c, ekf_scalar_t x[ATT_N], const int32_t v[
     /* the floor (a variance that can be below it: below the band, or in a scale at most the
      * floor's) and the band */
     for (i = 0; i < ATT_N; ++i) {
-        if (c->c[att_fx_dg[i]] < ATT_FX_C_ONE || c->e[i] <= ef) {
-            att_fx_floor_var(c, i, var_floor);
+        int32_t *d = &c->c[att_fx_dg[i]];
+        if (*d < ATT_FX_C_ONE || c->e[i] <= ef) {
+            const int32_t fl = att_fx_floor_c(c, i, var_floor);
+            if (fl == INT32_MAX) {
+                att_fx_floor_var(c, i, var_floor); /* rare: a floor this scale cannot hold */
+            } else {
+                *d = (*d < fl) ? fl : *d;
+                att_fx_renorm(c, i);
+            }
         }
     }
     return EKF_OK;

@@ -150,6 +150,10 @@ int32_t att_fx_floor_c(const att_cov_t *c, int i, ekf_scalar_t floor)
     if (floor <= 0) {
         return 0;
     }
+    if (sh > 0 && sh < 62 && floor < ((ekf_scalar_t)1 << 61)) {
+        /* ceil(floor 2^-sh) as the rounding of floor + 2^(sh-1) - 1 (no overflow below 2^62) */
+        return att_fx_to_c(floor + (((ekf_scalar_t)1 << (sh - 1)) - 1), sh);
+    }
     if (sh > 0) {
         const int64_t q = (sh >= 63) ? 0 : (floor >> sh);
         const int64_t f = q + (((sh >= 63) ? floor : (floor - (q << sh))) != 0);

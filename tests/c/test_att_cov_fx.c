@@ -9,6 +9,8 @@
  *   - every operation on random words and exponents (updates, prediction, noise, limits,
  *     remaps, guard): no word INT32_MIN (a negation stays defined), exponents within range;
  *     under the sanitizer build (scripts/test_sanitizers.sh) no undefined behaviour either;
+ *   - an update on words far from positive semi-definite: its rank-one term saturated, not
+ *     wrapped around;
  *   - a variance whose floor does not fit its state's scale (docs/reliability.md, Finding 12):
  *     floored to the floor by the update, not written as a saturated word below it;
  *   - the largest finite variance added to or scaled: an overflow (infinite), refused by the
@@ -232,6 +234,32 @@ static void test_every_operation_on_any_words(void)
     }
 }
 
+/* Words that pass the update's checks (every new variance about 0) but are far from positive
+ * semi-definite: row k and the diagonal at +INT32_MAX (4), every other entry -INT32_MAX. The
+ * rank-one term T_i v_j is then about +4 and C_ij - T_i v_j about -8: saturated to
+ * -INT32_MAX, not wrapped around to a positive word. */
+static void test_update_saturates_the_rank_one_term(void)
+{
+    const int k = ATT_R;
+    ekf_scalar_t x[ATT_N] = {0};
+    att_cov_t c;
+    int i, j;
+    memset(&c, 0, sizeof c);
+    for (i = 0; i < ATT_N; ++i) {
+        for (j = i; j < ATT_N; ++j) {
+            c.c[att_fx_ix[i][j]] = (i == j || i == k || j == k) ? INT32_MAX : -INT32_MAX;
+        }
+    }
+    TEST_ASSERT_EQUAL_INT(EKF_OK, att_cov_update_unit(&c, x, k, EKF_C(0.01), EKF_C(1e-6), EKF_C(0), EKF_C(1e-9), NULL));
+    for (i = 0; i < ATT_N; ++i) {
+        for (j = i + 1; j < ATT_N; ++j) {
+            if (i != k && j != k) {
+                TEST_ASSERT_EQUAL_INT32(-INT32_MAX, c.c[att_fx_ix[i][j]]);
+            }
+        }
+    }
+}
+
 /* A tiny variance (scale 2^-40 .. 2^-30) whose floor does not fit a word of its scale: the
  * update's floor sets it to the floor, in the floor's own scale. */
 static void test_update_floors_a_variance_below_a_floor_it_cannot_hold(void)
@@ -281,6 +309,7 @@ int main(void)
     UNITY_BEGIN();
     RUN_TEST(test_definiteness_exact_on_any_words);
     RUN_TEST(test_every_operation_on_any_words);
+    RUN_TEST(test_update_saturates_the_rank_one_term);
     RUN_TEST(test_update_floors_a_variance_below_a_floor_it_cannot_hold);
     RUN_TEST(test_largest_variance_overflows_cleanly);
     return UNITY_END();
