@@ -7,12 +7,13 @@
  * After every step: the state finite; once aligned, P exactly symmetric and positive
  * definite (Cholesky in double), every variance at least var_floor, the angles in their
  * ranges. Per bound: the calls refused as numeric failures (diag.numeric) and the guard's
- * repairs (diag.cov_repairs) at most the build's bounds below, which are about three times
- * the largest count measured over all bounds (docs/reliability.md, "Settings at their
- * bounds"). A bound that the settings check refuses with the other settings at their
- * defaults (one that only makes sense together with another setting, such as a gravity
- * above the default accelerometer range) must be in the list of such bounds; every other
- * one must be accepted.
+ * repairs (diag.cov_repairs) at most MAX_EVENTS, about three times the largest count
+ * measured at any bound (docs/reliability.md, "Settings at their bounds"). A bound that the
+ * settings check refuses with the other settings at their defaults (one that only makes
+ * sense together with another setting, such as a gravity above the default accelerometer
+ * range, or one the fixed-point build cannot represent) is run at the accepted value
+ * closest to it. A bound at which the stress input cannot align the filter (align_samples
+ * 65535) is aligned by att_align after a tenth of the steps.
  *
  *     test_att_bounds_x [--steps N] [--seed S] [--report] [--only NAME [--lo V] [--hi V]]
  * --steps: steps per bound (default STEPS); --report prints one line per bound (the figures
@@ -28,26 +29,19 @@
 #include "testsim.h"
 #include "unity.h"
 
-/* Steps per bound in the ctest: about 90 bounds per build in well under a minute (the
- * fixed-point step costs several times a float one). */
+/* Steps per bound in the ctest: about 90 bounds per build in well under a minute (a
+ * fixed-point step costs about four float ones). docs/reliability.md records 10^5 per bound
+ * (--steps 100000). */
 #if defined(EKF_SCALAR_FIXED)
 #define STEPS 10000L
 #else
-#define STEPS 20000L
+#define STEPS 30000L
 #endif
 
-/* Numeric refusals and guard repairs per 10^4 steps at any bound: about three times the
- * largest measured (docs/reliability.md, "Settings at their bounds"). */
-#if defined(EKF_SCALAR_FIXED)
-#define MAX_NUMERIC_PER_1E4 3000L
-#define MAX_REPAIRS_PER_1E4 30L
-#elif defined(EKF_SCALAR_FLOAT)
-#define MAX_NUMERIC_PER_1E4 30L
-#define MAX_REPAIRS_PER_1E4 30L
-#else
-#define MAX_NUMERIC_PER_1E4 30L
-#define MAX_REPAIRS_PER_1E4 30L
-#endif
+/* Numeric refusals and guard repairs allowed per bound, in up to 10^5 steps: about three
+ * times the most measured at any bound (1, in fixed point; docs/reliability.md, "Settings at
+ * their bounds"). */
+#define MAX_EVENTS 3L
 
 static long g_steps = STEPS;
 static uint64_t g_seed = 20261123u;
@@ -172,7 +166,7 @@ static ekf_scalar_t effective_bound(size_t i, ekf_scalar_t b, ekf_scalar_t d)
 
 static void test_every_bound_works(void)
 {
-    const long max_numeric = MAX_NUMERIC_PER_1E4 * g_steps / 10000L, max_repairs = MAX_REPAIRS_PER_1E4 * g_steps / 10000L;
+    const long max_numeric = MAX_EVENTS, max_repairs = MAX_EVENTS;
     long worst_numeric = 0, worst_repairs = 0;
     int failures = 0, narrowed = 0;
     size_t i;
