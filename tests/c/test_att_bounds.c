@@ -125,45 +125,6 @@ static void run_stress(const att_settings_t *s, long steps, run_t *out)
     out->repairs = (long)att_diag(&f)->cov_repairs;
 }
 
-/* 1 if setting i at value v (the others as in *base) passes att_setting_set and
- * att_settings_check. */
-static int accepted(const att_settings_t *base, size_t i, ekf_scalar_t v)
-{
-    att_settings_t s = *base;
-    return att_setting_set(&s, i, v) == EKF_OK && att_settings_check(&s) == EKF_OK;
-}
-
-/* The accepted value of setting i closest to its bound b, found by bisection between b and
- * the default d (accepted): b itself if accepted. A bound refused with the other settings at
- * their defaults is one that only makes sense with another setting changed too (a gravity
- * above the default accelerometer range), or one that the fixed-point build cannot represent
- * (a noise whose square is below its resolution, a bound whose square saturates): the filter
- * must work at the edge of what the check accepts. */
-static ekf_scalar_t effective_bound(size_t i, ekf_scalar_t b, ekf_scalar_t d)
-{
-    const att_settings_t *s = &att_default_settings;
-    const double bd = ekf_to_double(b), dd = ekf_to_double(d);
-    const int logs = bd > 0.0 && dd > 0.0;
-    double out = dd, in = bd; /* accepted, refused */
-    int k;
-    if (accepted(s, i, b)) {
-        return b;
-    }
-    for (k = 0; k < 80; ++k) {
-        const double mid = logs ? sqrt(out * in) : 0.5 * (out + in);
-        const ekf_scalar_t m = ekf_from_double(mid);
-        if (m == ekf_from_double(out) || m == ekf_from_double(in)) {
-            break;
-        }
-        if (accepted(s, i, m)) {
-            out = mid;
-        } else {
-            in = mid;
-        }
-    }
-    return ekf_from_double(out);
-}
-
 static void test_every_bound_works(void)
 {
     const long max_numeric = MAX_EVENTS, max_repairs = MAX_EVENTS;
@@ -179,19 +140,23 @@ static void test_every_bound_works(void)
         for (hi = 0; hi < 2; ++hi) {
             att_settings_t s = att_default_settings;
             const double other = hi ? g_hi : g_lo;
-            ekf_scalar_t v = !isnan(other) ? ekf_from_double(other) : hi ? info->hi : info->lo, def;
+            ekf_scalar_t v;
             run_t run;
-            TEST_ASSERT_EQUAL_INT(EKF_OK, att_setting_get(&s, i, &def));
-            if (info->type == ATT_SETTING_SCALAR) {
-                v = effective_bound(i, v, def);
-            }
-            if (v != (hi ? info->hi : info->lo)) {
-                ++narrowed;
-            }
-            if (att_setting_set(&s, i, v) != EKF_OK || att_settings_check(&s) != EKF_OK) {
-                printf("%s = %g (%s bound): refused by the settings check\n", info->name, ekf_to_double(v), hi ? "upper" : "lower");
+            if (!isnan(other)) {
+                v = ekf_from_double(other);
+                if (att_setting_set(&s, i, v) != EKF_OK || att_settings_check(&s) != EKF_OK) {
+                    printf("%s = %g: refused by the settings check\n", info->name, other);
+                    ++failures;
+                    continue;
+                }
+            } else if (ts_setting_at_bound(&s, i, hi) != 0) {
+                printf("%s: no value near its %s bound accepted\n", info->name, hi ? "upper" : "lower");
                 ++failures;
                 continue;
+            }
+            TEST_ASSERT_EQUAL_INT(EKF_OK, att_setting_get(&s, i, &v));
+            if (v != (hi ? info->hi : info->lo)) {
+                ++narrowed;
             }
             run_stress(&s, g_steps, &run);
             if (g_report) {

@@ -97,6 +97,48 @@ void ts_stress_sample(ts_rng_t *r, const att_settings_t *s, att_sample_t *smp)
     }
 }
 
+/* 1 if setting i at value v, the others at their defaults, passes the settings check. */
+static int accepted(size_t i, ekf_scalar_t v)
+{
+    att_settings_t s = att_default_settings;
+    return att_setting_set(&s, i, v) == EKF_OK && att_settings_check(&s) == EKF_OK;
+}
+
+int ts_setting_at_bound(att_settings_t *s, size_t i, int hi)
+{
+    const att_setting_info_t *info = att_setting_info(i);
+    ekf_scalar_t b, d;
+    double out, in;
+    int k;
+    *s = att_default_settings;
+    if (info == NULL || att_setting_get(s, i, &d) != EKF_OK) {
+        return -1;
+    }
+    b = hi ? info->hi : info->lo;
+    if (!accepted(i, b)) {
+        const int logs = ekf_to_double(b) > 0.0 && ekf_to_double(d) > 0.0;
+        if (info->type != ATT_SETTING_SCALAR || !accepted(i, d)) {
+            return -1;
+        }
+        out = ekf_to_double(d); /* accepted */
+        in = ekf_to_double(b);  /* refused */
+        for (k = 0; k < 80; ++k) {
+            const double mid = logs ? sqrt(out * in) : 0.5 * (out + in);
+            const ekf_scalar_t m = ekf_from_double(mid);
+            if (m == ekf_from_double(out) || m == ekf_from_double(in)) {
+                break;
+            }
+            if (accepted(i, m)) {
+                out = mid;
+            } else {
+                in = mid;
+            }
+        }
+        b = ekf_from_double(out);
+    }
+    return (att_setting_set(s, i, b) == EKF_OK && att_settings_check(s) == EKF_OK) ? 0 : -1;
+}
+
 void ts_euler_to_R(double phi, double theta, double psi, double R[9])
 {
     const double cr = cos(phi), sr = sin(phi), cp = cos(theta), sp = sin(theta), cy = cos(psi), sy = sin(psi);
