@@ -2,11 +2,14 @@
  * att_align.c - alignment: the initial attitude from gravity (and the magnetometer), and
  * the averaging phase of att_step before it (docs/derivation.md, "Alignment").
  */
+#include "att_align.h"
+
 #include <stddef.h>
 
 #include "att_gen.h"
-#include "att_internal.h"
+#include "att_mag.h"
 #include "att_model.h"
+#include "att_state.h"
 #include "ekf_util.h"
 
 ekf_status_t att_stage_align(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t accel[3],
@@ -59,17 +62,17 @@ ekf_status_t att_stage_align(att_vars_t *v, const att_settings_t *s, const ekf_s
     att_bias_restart(&v->bias);
     att_consider_reset(&v->consider);
 
-    /* a learned reference settles afresh (att_update.c, track_reference) */
+    /* a learned reference settles afresh (att_mag.c, track_reference) */
     v->mag_avg_norm = EKF_C(0);
     v->mag_avg_dip = EKF_C(0);
     v->mag_new_clock = EKF_C(0);
     v->mag_settled = 0u;
     if (s->mag_ref_norm > EKF_C(0)) {
-        att_set_mag_reference(v, s->mag_ref_norm, s->mag_ref_dip);
+        att_mag_set_reference(v, s->mag_ref_norm, s->mag_ref_dip);
     } else if (use_mag) {
-        att_set_mag_reference(v, att_norm3(mag), att_mag_dip(lev));
+        att_mag_set_reference(v, att_norm3(mag), att_mag_dip(lev));
     } else {
-        att_set_mag_reference(v, EKF_C(0), EKF_C(0));
+        att_mag_set_reference(v, EKF_C(0), EKF_C(0));
     }
     for (i = 0; i < 3; ++i) {
         v->gated_time[i] = EKF_C(0);

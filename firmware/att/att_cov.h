@@ -1,8 +1,8 @@
 /*
  * att_cov.h - the covariance P of the attitude filter: its storage and every operation the
- * filter applies to it. The stages (att_align.c, att_predict.c, att_update.c) change P only
- * through these functions and read it only by value, so that an implementation may store P
- * in any form. No function hands out a pointer into P.
+ * filter applies to it. The stages (att_align.c, att_predict.c, att_gyro.c, att_accel.c,
+ * att_mag.c) change P only through these functions and read it only by value, so that an
+ * implementation may store P in any form. No function hands out a pointer into P.
  *
  * Indices are the state indices of att_defs.h (0 .. ATT_N-1); callers pass valid ones.
  * Every operation keeps P exactly symmetric. Which operations keep P positive

@@ -5,9 +5,12 @@
  */
 #include <stddef.h>
 
+#include "att_predict.h"
+
 #include "att_gen.h"
-#include "att_internal.h"
+#include "att_lowpass.h"
 #include "att_model.h"
+#include "att_state.h"
 #include "ekf_util.h"
 
 /* Keeps every variance below a physical bound (docs/derivation.md, "Covariance bounds"):
@@ -36,33 +39,6 @@ static void limit_variances(att_vars_t *v, const att_settings_t *s)
     }
     (void)att_cov_limit_variance(&v->cov, ATT_PHI, ekf_sq(EKF_PI));
     (void)att_cov_limit_variance(&v->cov, ATT_THETA, ekf_sq(EKF_HALF_PI));
-}
-
-/* vec <- C^T vec: an earth-fixed vector seen from the body after it turned by C. */
-static void turn_vector(const ekf_scalar_t C[9], ekf_scalar_t vec[3])
-{
-    const ekf_scalar_t v0 = vec[0], v1 = vec[1], v2 = vec[2];
-    int i;
-    for (i = 0; i < 3; ++i) {
-        vec[i] = ekf_mac(ekf_mac(ekf_mul(C[i], v0), C[3 + i], v1), C[6 + i], v2);
-    }
-}
-
-/* The accelerometer low-pass (accel_lpf_tau, accel_lpf_order stages) lives in a frame that turns with the body:
- * every prediction carries the filtered specific force into the new body frame with the
- * step's rotation C (a vector fixed in the earth frame is C^T v in the new body axes), every
- * accelerometer sample is blended in (att_update.c). Gravity is earth-fixed, so it passes
- * without lag; linear acceleration that averages to zero in the earth frame (shaking,
- * vibration) is filtered out (docs/derivation.md, "Linear acceleration"). */
-static void accel_lp_turn(att_vars_t *v, const att_settings_t *s, const att_motion_t *mo)
-{
-    if (!v->accel_lp_valid) {
-        return;
-    }
-    turn_vector(mo->rot, v->accel_lp);
-    if (s->accel_lpf_order > 1u) {
-        turn_vector(mo->rot, v->accel_lp1);
-    }
 }
 
 /* A step longer than the sample interval by more than half of it is a gap: the body rate
@@ -167,13 +143,13 @@ ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scala
     v->last_dt = dt;
     if (!(ekf_abs(xn[ATT_THETA]) > s->gimbal_limit)) {
         /* the new angles' trigonometry, unclamped here: the measurement stage that follows
-         * takes it instead of computing it again (att_update.c, meas_trig) */
+         * takes it instead of computing it again (att_sensor_trig) */
         v->trig = mo.t;
         v->trig_at[0] = xn[ATT_PHI];
         v->trig_at[1] = xn[ATT_THETA];
     }
     if (s->accel_lpf_tau > EKF_C(0)) {
-        accel_lp_turn(v, s, &mo);
+        att_lowpass_turn(v, s, mo.rot);
     }
     /* the composed rotation's angles are in range already; passing over the top shows as a
      * half turn of roll and heading (the Jacobian was taken at the new angles) */

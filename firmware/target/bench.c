@@ -13,7 +13,7 @@
  * sample after the alignment the full att_step is timed on the filter; the public stages
  * (att_update_gyro, att_predict, att_update_accel, att_update_mag, each a whole call with
  * its own guard and commit) one by one on a copy of it; and the parts of att_step one by
- * one on a third copy, in att_step's order (att_internal.h): the saved copy of the
+ * one on a third copy, in att_step's order (att.c): the saved copy of the
  * variables (the commit's cost on the normal path), the rest detector, the gyroscope,
  * prediction, accelerometer and magnetometer stages, the guard with the last finiteness
  * check. All three must end in the same state, bit for bit, or the benchmark fails; what
@@ -32,7 +32,11 @@
 #include <string.h>
 
 #include "att.h"
-#include "att_internal.h"
+#include "att_accel.h"
+#include "att_gyro.h"
+#include "att_mag.h"
+#include "att_predict.h"
+#include "att_state.h"
 #include "ekf_util.h"
 #include "target.h"
 #include "testsim.h"

@@ -23,7 +23,7 @@
 #include "att.h"
 #include "att_cov.h"
 #include "att_cov_ref_wrap.h"
-#include "att_internal.h"
+#include "att_state.h"
 #include "att_model.h"
 #include "testsim.h"
 #include "unity.h"

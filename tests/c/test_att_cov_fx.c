@@ -22,7 +22,7 @@
 #include <string.h>
 
 #include "att_cov_fx_words.h"
-#include "att_internal.h"
+#include "att_state.h"
 #include "testsim.h"
 #include "unity.h"
 
