@@ -252,7 +252,8 @@ ekf_status_t att_cov_predict(att_cov_t *c, const ekf_scalar_t d1[ATT_GEN_F1_NNZ]
 static ekf_scalar_t ratio_q(ekf_scalar_t a, ekf_scalar_t b)
 {
     const int la = ekf_fx_bitlen64((uint64_t)a), lb = ekf_fx_bitlen64((uint64_t)b);
-    const uint32_t ah = (uint32_t)att_fx_to_c(a, la - 31), bh = (uint32_t)((uint64_t)b << (64 - lb) >> 32);
+    /* bh: b's top 32 bits (b < 2^63: the shift by 63 - lb loses none, and is defined for b = 0) */
+    const uint32_t ah = (uint32_t)att_fx_to_c(a, la - 31), bh = (uint32_t)((uint64_t)b << (63 - lb) >> 31);
     /* a / b = ah 2^(la - 31) / (bh 2^(lb - 32)); ah / bh = ah recip(bh) 2^-63 */
     return att_fx_to_q((int64_t)(((uint64_t)ah * ekf_fx_recip32(bh)) >> 32), -(la - 31 - (lb - 32) - 31 + EKF_FX_FRAC));
 }
