@@ -9,7 +9,7 @@
 # --build: a configured build directory with the soak executables (default build/host;
 # build/host-asan runs them under ASan + UBSan, every finding fatal). Default 100000 steps
 # (100 s of flight) per bound, seed 1. Fails if any run fails; prints one line per failure
-# and a summary per scalar type.
+# and per run with guard repairs, and a summary per scalar type.
 set -uo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 BUILD="$ROOT/build/host"; SCALARS="f d x"; STEPS=100000; SEED=1
@@ -39,6 +39,7 @@ for s in $SCALARS; do
       runs=$((runs + 1))
       r="$(printf '%s\n' "$out" | sed -n 's/.*cov_repairs=\([0-9]*\).*/\1/p' | tail -n 1)"
       repairs=$((repairs + ${r:-0}))
+      [ "${r:-0}" -gt 0 ] && printf '[soak_bounds] %s %s:%s: %s guard repairs\n' "$s" "$name" "$b" "$r"
       if [ "$rc" -ne 0 ] || ! printf '%s\n' "$out" | grep -q "result=PASS"; then
         failed=$((failed + 1)); status=1
         printf '[soak_bounds] %s %s:%s FAILED: %s\n' "$s" "$name" "$b" "$(printf '%s\n' "$out" | tail -n 3 | tr '\n' ' ')"

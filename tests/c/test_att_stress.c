@@ -26,7 +26,7 @@
  * its definiteness, which must stay rare: the P-positive-definite check after every step
  * would pass however often the guard repaired (or refused), so repairs and refusals are
  * bounded, at about three times what this input measures in every build (docs/reliability.md,
- * "Stress"), which is none: one of them fails the test. */
+ * "Covariance repairs"), which is none: one of them fails the test. */
 #define MAX_REPAIRS 0u
 #define MAX_NUMERIC 0u
 /* (fixed point) saturations of the Q format: a saturation is refused like an IEEE overflow,
