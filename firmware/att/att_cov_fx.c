@@ -7,156 +7,12 @@
  * Q2.29, whatever the variances: a tilt variance of 1e-7 and a heading variance of pi^2 both
  * have 29 to 31 significant bits. Every operation works on C with 32 x 32 -> 64 multiplies
  * and changes an exponent when a variance leaves the band (renormalisation: a row and
- * column shifted). The kernels for the propagation and the updates are in
- * att_cov_fx_kernels.c; this file holds the storage, the conversions, the small operations
- * (the rate noise of the alignment too) and the definiteness guard.
+ * column shifted). The words, their rounding and the exponents are in att_cov_fx_words.c;
+ * the kernels for the propagation and the updates in att_cov_fx_kernels.c; this file holds
+ * the storage, the conversions, the small operations (the rate noise of the alignment too)
+ * and the definiteness guard.
  */
-#include "att_cov_fx.h"
-
-const uint8_t att_fx_ix[ATT_N][ATT_N] = {
-    {0, 1, 2, 3, 4, 5, 6, 7, 8},          {1, 9, 10, 11, 12, 13, 14, 15, 16},
-    {2, 10, 17, 18, 19, 20, 21, 22, 23},  {3, 11, 18, 24, 25, 26, 27, 28, 29},
-    {4, 12, 19, 25, 30, 31, 32, 33, 34},  {5, 13, 20, 26, 31, 35, 36, 37, 38},
-    {6, 14, 21, 27, 32, 36, 39, 40, 41},  {7, 15, 22, 28, 33, 37, 40, 42, 43},
-    {8, 16, 23, 29, 34, 38, 41, 43, 44},
-};
-const uint8_t att_fx_dg[ATT_N] = {0, 9, 17, 24, 30, 35, 39, 42, 44};
-
-/* ---- numeric helpers ---- */
-
-int32_t att_fx_to_c_any(int64_t v, int sh)
-{
-    int64_t r;
-    if (sh > 0) {
-        if (sh >= 63) {
-            return 0;
-        }
-        r = (v + ((int64_t)1 << (sh - 1))) >> sh;
-    } else {
-        const int k = -sh;
-        if (v == 0 || k == 0) {
-            r = v;
-        } else if (k >= 32 || att_fx_abslen(v) + k > 62) {
-            return (v > 0) ? INT32_MAX : -INT32_MAX;
-        } else {
-            r = (int64_t)((uint64_t)v << k);
-        }
-    }
-    return (r > INT32_MAX) ? INT32_MAX : (r < -INT32_MAX) ? -INT32_MAX : (int32_t)r;
-}
-
-ekf_scalar_t att_fx_to_q(int64_t v, int sh)
-{
-    if (sh > 0) {
-        return (sh >= 63) ? 0 : (v + ((int64_t)1 << (sh - 1))) >> sh;
-    }
-    if (v == 0 || sh == 0) {
-        return v;
-    }
-    if (-sh >= 63 || att_fx_abslen(v) - sh > 62) {
-        return ekf_fx_saturate(v > 0 ? 1 : -1);
-    }
-    return (ekf_scalar_t)((uint64_t)v << -sh);
-}
-
-int att_fx_norm_exp(uint64_t m, int x)
-{
-    /* the e with m 2^x 2^(29 - 2e) in [2^29, 2^31): floor((bitlen + x + 29 - 30) / 2) */
-    const int n = att_fx_bitlen64(m) + x - 1;
-    return (n >= 0) ? n / 2 : -((1 - n) / 2);
-}
-
-/* The exponent and normalised value of the variance v (Q29.34, v != 0, finite). */
-static int32_t norm_q(ekf_scalar_t v, int *e)
-{
-    const uint64_t m = (uint64_t)((v < 0) ? -v : v);
-    int en = att_fx_norm_exp(m, -EKF_FX_FRAC);
-    int32_t cv;
-    en = (en < ATT_FX_E_MIN) ? ATT_FX_E_MIN : en;
-    cv = att_fx_to_c((int64_t)m, EKF_FX_FRAC - ATT_FX_CF + 2 * en);
-    *e = en;
-    return (v < 0) ? -cv : cv;
-}
-
-void att_fx_set_exp(att_cov_t *c, int i, int en)
-{
-    const int k = en - c->e[i];
-    int j;
-    if (k == 0) {
-        return;
-    }
-    if (k > 0 && k < 16) {
-        /* a larger scale (the common case): every word a rounded right shift, as below */
-        const uint8_t *ix = att_fx_ix[i];
-        for (j = 0; j < ATT_N; ++j) {
-            int32_t *p = &c->c[ix[j]];
-            const int kk = (j == i) ? 2 * k : k;
-            *p = (*p >> kk) + ((*p >> (kk - 1)) & 1);
-        }
-        c->e[i] = (int8_t)en;
-        return;
-    }
-    if (k < 0 && k > -15) {
-        /* a smaller scale (a variance back into the band): exact left shifts when every word
-         * of the row, the diagonal shifted twice as far, stays within the word */
-        const uint8_t *ix = att_fx_ix[i];
-        const int32_t d = c->c[ix[i]];
-        uint32_t m = 0u;
-        for (j = 0; j < ATT_N; ++j) {
-            const int32_t w = c->c[ix[j]];
-            m |= (uint32_t)(w ^ (w >> 31));
-        }
-        if ((m >> (31 + k)) == 0u && ((uint32_t)(d ^ (d >> 31)) >> (31 + 2 * k)) == 0u) {
-            for (j = 0; j < ATT_N; ++j) {
-                c->c[ix[j]] = (int32_t)((uint32_t)c->c[ix[j]] << ((j == i) ? -2 * k : -k));
-            }
-            c->e[i] = (int8_t)en;
-            return;
-        }
-    }
-    for (j = 0; j < ATT_N; ++j) {
-        int32_t *p = &c->c[att_fx_ix[i][j]];
-        const int kk = (j == i) ? 2 * k : k;
-        if (kk > 0 && kk < 32) { /* a larger scale: rounded right shift (att_fx_w) */
-            *p = (*p >> kk) + ((*p >> (kk - 1)) & 1);
-        } else if (kk < 0 && kk > -31 && ((*p ^ (*p >> 31)) >> (31 + kk)) == 0) { /* exact left shift */
-            *p = (int32_t)((uint32_t)*p << -kk);
-        } else {
-            *p = att_fx_to_c_any(*p, kk);
-        }
-    }
-    c->e[i] = (int8_t)en;
-}
-
-void att_fx_renorm(att_cov_t *c, int i)
-{
-    const int32_t v = c->c[att_fx_dg[i]];
-    int en;
-    if (v >= ATT_FX_C_ONE || v <= 0) {
-        return;
-    }
-    en = att_fx_norm_exp((uint64_t)v, 2 * c->e[i] - ATT_FX_CF);
-    att_fx_set_exp(c, i, (en < ATT_FX_E_MIN) ? ATT_FX_E_MIN : en);
-}
-
-int att_fx_sum_exp(int32_t cii, int ei, uint64_t m, int x)
-{
-    /* both terms at the exponent y where the larger is below 2^61 */
-    const int x1 = 2 * ei - ATT_FX_CF;
-    const int l1 = att_fx_abslen(cii) + x1;
-    const int l2 = att_fx_bitlen64(m) + x;
-    const int y = ((l1 > l2) ? l1 : l2) - 61;
-    const int64_t v = (int64_t)att_fx_to_q((int64_t)cii, y - x1) + att_fx_to_q((int64_t)m, y - x);
-    const int en = att_fx_norm_exp((uint64_t)(v < 0 ? -v : v), y);
-    return (en < ATT_FX_E_MIN) ? ATT_FX_E_MIN : en;
-}
-
-/* Marks state i infinite (an overflow: counted like any saturation). */
-void att_fx_overflow(att_cov_t *c, int i)
-{
-    (void)ekf_fx_saturate(1);
-    c->inf = (uint16_t)(c->inf | (1u << i));
-}
+#include "att_cov_fx_words.h"
 
 /* ---- set and read ---- */
 
@@ -215,7 +71,7 @@ void att_cov_from_full(att_cov_t *c, const ekf_scalar_t P[ATT_N * ATT_N])
             c->inf = (uint16_t)(c->inf | (1u << i));
             e = ATT_FX_E_MAX;
         } else if (v > 0) {
-            (void)norm_q(v, &e);
+            (void)att_fx_norm_q(v, &e);
         } else {
             e = ATT_FX_E_MIN;
         }
@@ -352,35 +208,6 @@ void att_cov_add_rate_noise(att_cov_t *c, const ekf_scalar_t g[9], const ekf_sca
 
 /* ---- bounds and remaps ---- */
 
-/* var_floor in the units of state i's C, rounded up (so that the variance it gives back is
- * at least the floor). */
-int32_t att_fx_floor_c(const att_cov_t *c, int i, ekf_scalar_t floor)
-{
-    const int sh = EKF_FX_FRAC - ATT_FX_CF + 2 * c->e[i];
-    if (sh > 0 && sh < 63) {
-        const int32_t f = att_fx_to_c(floor + (((ekf_scalar_t)1 << (sh - 1)) - 1), sh);
-        return (f > 0 || floor <= 0) ? f : 1;
-    }
-    return att_fx_to_c(floor, sh);
-}
-
-/* 1 if P_ii is below floor. att_fx_floor_c saturates to INT32_MAX when the floor does not
- * fit a word of state i's scale; every word is then at most the floor. */
-static int below_floor(const att_cov_t *c, int i, ekf_scalar_t floor)
-{
-    const int32_t f = att_fx_floor_c(c, i, floor);
-    return c->c[att_fx_dg[i]] < f || f == INT32_MAX;
-}
-
-/* P_ii <- floor, in the floor's own scale (the row and column rescaled with it). */
-static void set_to_floor(att_cov_t *c, int i, ekf_scalar_t floor)
-{
-    int en;
-    const int32_t v = norm_q(floor, &en);
-    att_fx_set_exp(c, i, en);
-    c->c[att_fx_dg[i]] = v;
-}
-
 int att_cov_floor_diag(att_cov_t *c, ekf_scalar_t floor)
 {
     int i;
@@ -400,14 +227,9 @@ int att_cov_floor_diag(att_cov_t *c, ekf_scalar_t floor)
         }
     }
     for (i = 0; i < ATT_N; ++i) {
-        int32_t *d = &c->c[att_fx_dg[i]];
         /* a variance below the band, or in a scale at most the floor's, can be below it */
-        if (*d < ATT_FX_C_ONE || (floor > 0 && c->e[i] <= att_fx_norm_exp((uint64_t)floor, -EKF_FX_FRAC))) {
-            if (below_floor(c, i, floor)) {
-                set_to_floor(c, i, floor);
-            } else {
-                att_fx_renorm(c, i);
-            }
+        if (c->c[att_fx_dg[i]] < ATT_FX_C_ONE || (floor > 0 && c->e[i] <= att_fx_norm_exp((uint64_t)floor, -EKF_FX_FRAC))) {
+            att_fx_floor_var(c, i, floor);
         }
     }
     return 0;
@@ -423,7 +245,7 @@ void att_cov_reset_state(att_cov_t *c, int i, ekf_scalar_t var)
     if (!ekf_fx_isfinite(var)) {
         c->inf = (uint16_t)(c->inf | (1u << i));
     } else if (var != 0) {
-        c->c[att_fx_dg[i]] = norm_q(var, &en);
+        c->c[att_fx_dg[i]] = att_fx_norm_q(var, &en);
         if (en > ATT_FX_E_MAX) {
             att_fx_overflow(c, i);
             en = ATT_FX_E_MAX;
@@ -457,7 +279,7 @@ int att_cov_limit_variance(att_cov_t *c, int i, ekf_scalar_t max_var)
     /* the diagonal becomes max_var, row and column scale by g = sqrt(dn / d) (in (1/2, 2)
      * when both are normalised): g in Q1.30 from two reciprocal square roots */
     att_fx_renorm(c, i);
-    dn = norm_q(max_var, &en);
+    dn = att_fx_norm_q(max_var, &en);
     {
         const uint32_t rn = ekf_fx_rsqrt32((uint32_t)dn << 1), ro = ekf_fx_rsqrt32((uint32_t)*d << 1);
         const uint64_t t = ((uint64_t)(uint32_t)dn * rn) >> 32; /* 2^15 sqrt(dn / 2) */
@@ -492,37 +314,50 @@ static int64_t mul_hi(int64_t a, uint32_t b)
     return (int64_t)ekf_fx_hi(a) * (int64_t)b + (int64_t)(((uint64_t)(uint32_t)a * b) >> 32);
 }
 
-/* Cholesky factorisation of C - diag(tau / s_i^2) (tau = ATT_COV_FX_TAU) in Q2.29 with
- * 64-bit sums: G_jk = (C_jk - sum_m G_jm G_km) / G_kk, each product bounded by
- * sqrt(C_jj C_kk) < 4, the division a multiplication by the pivot's reciprocal square
- * root. 1 if every pivot p_j >= rel_margin C_jj and > 0, else 0. */
+/* Cholesky factorisation of C - diag(tau_i) (tau_i = ATT_COV_FX_TAU in the units of state
+ * i's C, rounded up) in Q2.29 with 64-bit sums: G_jk = (C_jk - sum_m G_jm G_km) / G_kk, the
+ * division a multiplication by the pivot's reciprocal square root. 1 if every pivot
+ * p_j >= rel_margin (C_jj - tau_j) and > 0 (ekf_cov_is_pd of the normalised P - tau I),
+ * else 0.
+ * Defined for any words, saturated ones included, without an overflow: the squares of row j
+ * are summed as its entries are formed, and the row is refused as soon as they reach
+ * d_j = (C_jj - tau_j) 2^29 (its pivot d_j - sum would not be positive). So every sum of
+ * squares stays below its d_j < 2^61, and by Cauchy-Schwarz every sum of products
+ * G_jm G_km below sqrt(d_j d_k) < 2^61: no intermediate leaves the int64 range. */
 static int chol_pd(const att_cov_t *c, ekf_scalar_t rel_margin)
 {
     int32_t G[ATT_N][ATT_N]; /* G_jk (k < j) at G[j][k] */
     uint32_t rs[ATT_N];       /* 1 / sqrt(p_k) = rs_k 2^(-18 - t_k / 2), p_k = acc_k 2^-58 */
     int sh[ATT_N];            /* 15 + t_k / 2: G_jk = (acc rs_k / 2^32) >> sh_k */
     /* rel_margin in Q0.32 (< 1 by the callers) */
-    const uint32_t rel = (rel_margin >= EKF_C(1)) ? 0xFFFFFFFFu : (uint32_t)(rel_margin >> (EKF_FX_FRAC - 32));
+    const uint32_t rel = (rel_margin >= EKF_C(1)) ? 0xFFFFFFFFu : (rel_margin <= 0) ? 0u : (uint32_t)(rel_margin >> (EKF_FX_FRAC - 32));
     int j, k, m;
     for (j = 0; j < ATT_N; ++j) {
         int32_t *gj = G[j];
-        int64_t acc, sum;
+        /* C_jj - tau_j: |C_jj| <= INT32_MAX and 0 <= tau_j <= INT32_MAX, so it fits 33 bits */
+        const int64_t cjj = (int64_t)c->c[att_fx_dg[j]] - att_fx_floor_c(c, j, ATT_COV_FX_TAU);
+        const int64_t dj = cjj * ((int64_t)1 << ATT_FX_CF); /* Q4.58, < 2^61 (times 2^CF: a left shift of a negative value is undefined) */
+        int64_t acc, sum, sq = 0;
         int t;
+        if (cjj <= 0) {
+            return 0;
+        }
         for (k = 0; k < j; ++k) {
             const int32_t *gk = G[k];
             /* the products summed first (one multiply-accumulate each), subtracted once */
             for (m = 0, sum = 0; m < k; ++m) {
                 sum += (int64_t)gj[m] * gk[m];
             }
-            acc = (int64_t)c->c[att_fx_ix[j][k]] * ((int64_t)1 << ATT_FX_CF) - sum; /* Q4.58 (times 2^CF: a left shift of a negative value is undefined) */
+            acc = (int64_t)c->c[att_fx_ix[j][k]] * ((int64_t)1 << ATT_FX_CF) - sum; /* |acc| < 2^60 + 2^61 */
             gj[k] = att_fx_to_c(mul_hi(acc, rs[k]), sh[k]);
+            sq += (int64_t)gj[k] * gj[k]; /* < 2^61 + 2^62 */
+            if (sq >= dj) {
+                return 0; /* the pivot d_j - sq would not be positive */
+            }
         }
-        for (m = 0, sum = 0; m < j; ++m) {
-            sum += (int64_t)gj[m] * gj[m];
-        }
-        acc = ((int64_t)c->c[att_fx_dg[j]] - att_fx_floor_c(c, j, ATT_COV_FX_TAU)) * ((int64_t)1 << ATT_FX_CF) - sum;
-        /* p_j 2^26 against rel C_jj 2^26 (the product Q0.32 x Q2.29 >> 35) */
-        if (acc <= 0 || (acc >> 32) < (int64_t)(((uint64_t)rel * (uint32_t)c->c[att_fx_dg[j]]) >> 35)) {
+        acc = dj - sq;
+        /* p_j 2^26 against rel (C_jj - tau_j) 2^26 (the product Q0.32 x Q2.29 >> 35) */
+        if ((acc >> 32) < (int64_t)(((uint64_t)rel * (uint64_t)cjj) >> 35)) {
             return 0;
         }
         /* acc = d 2^t, d in [2^30, 2^32), t even: 1/sqrt(p) = rsqrt(d) 2^-47 2^(29 - t/2) */
@@ -536,48 +371,72 @@ static int chol_pd(const att_cov_t *c, ekf_scalar_t rel_margin)
 
 int att_cov_is_pd(const att_cov_t *c, ekf_scalar_t rel_margin) { return (c->inf == 0u) && chol_pd(c, rel_margin); }
 
+/* The normalised covariance M = S^-1 (P - tau I) S^-1 (S = diag(2^e_i)) in Q29.34: M_ij =
+ * C_ij 2^5 exactly, the margin tau_i (ATT_COV_FX_TAU in the units of state i's C, as in
+ * chol_pd) taken off the diagonal. */
+static void to_normalised(const att_cov_t *c, ekf_scalar_t M[ATT_N * ATT_N], int32_t tau[ATT_N])
+{
+    int i, j;
+    for (i = 0; i < ATT_N; ++i) {
+        tau[i] = att_fx_floor_c(c, i, ATT_COV_FX_TAU);
+        for (j = 0; j < ATT_N; ++j) {
+            const int64_t w = (int64_t)c->c[att_fx_ix[i][j]] - ((i == j) ? tau[i] : 0);
+            M[i * ATT_N + j] = w * ((int64_t)1 << (EKF_FX_FRAC - ATT_FX_CF));
+        }
+    }
+}
+
+/* C from the normalised M (to_normalised) with the margins tau added back, each state's
+ * exponent moved by what its variance grew: -1 (nothing written) if a variance would leave
+ * the exponents' range. */
+static int from_normalised(att_cov_t *c, const ekf_scalar_t M[ATT_N * ATT_N], const int32_t tau[ATT_N])
+{
+    int d[ATT_N], i, j;
+    for (i = 0; i < ATT_N; ++i) {
+        const int64_t m = M[i * ATT_N + i] + (int64_t)tau[i] * ((int64_t)1 << (EKF_FX_FRAC - ATT_FX_CF));
+        d[i] = (m > 0) ? att_fx_norm_exp((uint64_t)m, -EKF_FX_FRAC) : 0;
+        d[i] = (c->e[i] + d[i] < ATT_FX_E_MIN) ? ATT_FX_E_MIN - c->e[i] : d[i];
+        if (c->e[i] + d[i] > ATT_FX_E_MAX) {
+            return -1;
+        }
+    }
+    for (i = 0; i < ATT_N; ++i) {
+        for (j = i; j < ATT_N; ++j) {
+            const int64_t m = M[i * ATT_N + j] + ((i == j) ? (int64_t)tau[i] * ((int64_t)1 << (EKF_FX_FRAC - ATT_FX_CF)) : 0);
+            c->c[att_fx_ix[i][j]] = att_fx_to_c_any(m, EKF_FX_FRAC - ATT_FX_CF + d[i] + d[j]);
+        }
+    }
+    for (i = 0; i < ATT_N; ++i) {
+        c->e[i] = (int8_t)(c->e[i] + d[i]);
+    }
+    return 0;
+}
+
 int att_cov_ensure_pd(att_cov_t *c, ekf_scalar_t rel_margin, ekf_scalar_t var_floor)
 {
-    ekf_scalar_t lambda = ekf_max(ekf_mul(EKF_C(10), rel_margin), ekf_mul(EKF_C(16), EKF_SCALAR_EPS));
-    int rounds = 0, i, j;
+    ekf_scalar_t M[ATT_N * ATT_N], work[ATT_COV_NP];
+    int32_t tau[ATT_N];
+    int rounds, i;
     if (c->inf != 0u || !(var_floor > 0) || rel_margin < 0 || !(rel_margin < EKF_C(1))) {
         return -1;
     }
     if (chol_pd(c, rel_margin)) {
         return 0;
     }
-    while (lambda <= EKF_C(1)) {
-        /* P_ii <- max(P_ii, floor) (1 + lambda): lambda in Q0.31 on the normalised C_ii */
-        ++rounds;
-        for (i = 0; i < ATT_N; ++i) {
-            const int32_t f = att_fx_floor_c(c, i, var_floor);
-            int32_t *d = &c->c[att_fx_dg[i]];
-            if (f == INT32_MAX) { /* the floor does not fit this scale's word */
-                set_to_floor(c, i, var_floor);
-            } else if (*d < f) {
-                *d = f;
-            }
-            att_fx_renorm(c, i);
-            att_cov_add_var(c, i, ekf_mul(att_cov_var(c, i), lambda));
-        }
-        if (c->inf != 0u) {
+    /* rare: the generic core's repair (ekf_cov_ensure_pd) on the normalised P - tau I, where
+     * its test (pivots relative to their variances) and its loading (relative to the
+     * variances) mean what they mean on P: the same rounds as the packed build's. Its floor
+     * is the variances' own (the guard floors them first); var_floor is applied in the words
+     * afterwards. */
+    to_normalised(c, M, tau);
+    rounds = ekf_cov_ensure_pd(M, ATT_N, rel_margin, (ekf_scalar_t)1, work);
+    if (rounds > 0) {
+        if (from_normalised(c, M, tau) != 0) {
             return -1;
         }
-        lambda = ekf_mul(lambda, EKF_C(10));
-        if (chol_pd(c, rel_margin)) {
-            return rounds;
+        for (i = 0; i < ATT_N; ++i) {
+            att_fx_floor_var(c, i, var_floor);
         }
-    }
-    /* the correlations themselves are broken: keep the variances only */
-    ++rounds;
-    for (i = 0; i < ATT_N; ++i) {
-        for (j = i + 1; j < ATT_N; ++j) {
-            c->c[att_fx_ix[i][j]] = 0;
-        }
-        if (below_floor(c, i, var_floor)) {
-            att_cov_reset_state(c, i, var_floor);
-        }
-        att_fx_renorm(c, i);
     }
     return rounds;
 }
@@ -589,4 +448,3 @@ int att_cov_guard(att_cov_t *c, ekf_scalar_t rel_margin, ekf_scalar_t var_floor)
     }
     return att_cov_ensure_pd(c, rel_margin, var_floor);
 }
-

@@ -7,22 +7,38 @@
  *   F P F^T = S (F~ c F~^T) S, F~ = S^-1 F S: the scaled transition, one exponent per row;
  *   an update with H: u = S H^T / 2^eta, v = c u, q = u^T c u, Sn = q + R 2^(-2 eta):
  *   c' = c - v v^T / Sn, K = S v / (2^eta Sn).
- * Sums of products are exact in 64 bits, every stored word rounded once; the new
- * exponents are chosen from the new variances, so a variance that grows or shrinks by any
- * factor keeps its 29 to 31 significant bits.
+ * Sums of products are exact in 64 bits, every stored word rounded once and saturated
+ * (never wrapped), whatever the words it comes from; the new exponents are chosen from the
+ * new variances, so a variance that grows or shrinks by any factor keeps its 29 to 31
+ * significant bits.
  */
-#include "att_cov_fx.h"
+#include "att_cov_fx_words.h"
 
 #include <stddef.h>
 
 #include "ekf_util.h"
 
 /* round(a b 2^-32) of two words: the product's high word plus the top bit of its low word
- * (the same as (a b + 2^31) >> 32, without the rounding constant in the accumulator). */
-ATT_FX_INLINE uint32_t mul_hi_round(int32_t a, int32_t b)
+ * (the same as (a b + 2^31) >> 32, without the rounding constant in the accumulator). For
+ * words within +-INT32_MAX the result is within +-(2^30 - 1). */
+ATT_FX_INLINE int32_t mul_hi_round(int32_t a, int32_t b)
 {
     const int64_t p = (int64_t)a * b;
-    return (uint32_t)(int32_t)(p >> 32) + ((uint32_t)p >> 31);
+    return (int32_t)(p >> 32) + (int32_t)((uint32_t)p >> 31);
+}
+
+/* w - 4 round(a b 2^-32), the rank-one update of a word by T_i v_j (Q2.30 x Q2.29 -> Q2.29),
+ * saturated to +-INT32_MAX, never wrapped around, for any words: w - 4 t = 4 u + (w mod 4)
+ * with u = floor(w / 4) - t, which fits 32 bits (|t| < 2^30). u in (-2^29, 2^29) gives a
+ * word; beyond, the result is saturated (exactly where it leaves the word, but for the
+ * results -2^31 + 2 and -2^31 + 3, which become -2^31 + 1). */
+ATT_FX_INLINE int32_t sub_rank1(int32_t w, int32_t a, int32_t b)
+{
+    const int32_t u = (w >> 2) - mul_hi_round(a, b);
+    if ((uint32_t)u + ((1u << 29) - 1u) < (1u << 30) - 1u) {
+        return (int32_t)(((uint32_t)u << 2) | ((uint32_t)w & 3u));
+    }
+    return (u > 0) ? INT32_MAX : -INT32_MAX;
 }
 
 /* Dot product of two 9-vectors of words, exact (nine multiply-accumulates). */
@@ -31,38 +47,6 @@ ATT_FX_INLINE int64_t dot9(const int32_t *a, const int32_t *b)
     return (int64_t)a[0] * b[0] + (int64_t)a[1] * b[1] + (int64_t)a[2] * b[2] + (int64_t)a[3] * b[3] +
            (int64_t)a[4] * b[4] + (int64_t)a[5] * b[5] + (int64_t)a[6] * b[6] + (int64_t)a[7] * b[7] +
            (int64_t)a[8] * b[8];
-}
-
-int att_fx_block_row(const int64_t *v, int32_t *w)
-{
-    const int bits = 30;
-    uint64_t m = 0u;
-    int j, sh;
-    for (j = 0; j < ATT_N; ++j) {
-        m |= (v[j] < 0) ? (uint64_t)0 - (uint64_t)v[j] : (uint64_t)v[j];
-    }
-    sh = ekf_fx_bitlen64(m) - bits;
-    /* every |v_j| < 2^(sh + bits): the rounded words stay within 2^30, so
-     * att_fx_to_c's range checks are not needed (the same rounding: floor plus the last
-     * bit shifted out) */
-    if (sh >= 32) {
-        const int k = sh - 32;
-        for (j = 0; j < ATT_N; ++j) {
-            const int32_t hi = (int32_t)(v[j] >> 32);
-            w[j] = (hi >> k) + (int32_t)((k > 0) ? ((uint32_t)hi >> (k - 1)) & 1u : (uint32_t)v[j] >> 31);
-        }
-    } else if (sh > 0) {
-        for (j = 0; j < ATT_N; ++j) {
-            const int32_t hi = (int32_t)(v[j] >> 32);
-            const uint32_t lo = (uint32_t)v[j];
-            w[j] = (int32_t)((lo >> sh) | ((uint32_t)hi << (32 - sh))) + (int32_t)((lo >> (sh - 1)) & 1u);
-        }
-    } else {
-        for (j = 0; j < ATT_N; ++j) {
-            w[j] = (int32_t)((uint32_t)v[j] << -sh);
-        }
-    }
-    return sh;
 }
 
 /* ---- propagation ---- */
@@ -90,7 +74,7 @@ static void scaled_rows(const att_cov_t *c, const ekf_nz_t *pat, int nnz, const 
         for (; k < nnz && pat[k].row == row; ++k) {
             const int col = pat[k].col;
             if (col == row) {
-                diag += d[k];
+                diag = ekf_fx_add(diag, d[k]); /* (saturated: an infinite factor overflows the variance) */
             } else if (d[k] != 0) {
                 b = att_fx_abslen(d[k]) + c->e[col];
                 top = (b > top) ? b : top;
@@ -158,11 +142,20 @@ static void propagate_factor(att_cov_t *c, const ekf_nz_t *pat, int nnz, const e
         const int i = base + r, di = c->e[i] - en[r];
         const int sh = -(al[r] + ATT_FX_CF + di);
         const uint8_t *ix = att_fx_ix[i];
-        if (sh <= 0 && sh >= -1) {
-            /* |A_rl| < 2^30 (att_fx_block_row): a left shift by at most one bit stays within the word */
+        if (sh == 0) {
             for (l = 0; l < ATT_N; ++l) { /* the rows F leaves: c'_il = A_il */
                 if (l < base || l >= base + NR) {
-                    c->c[ix[l]] = (int32_t)((uint32_t)a[r][l] << -sh);
+                    c->c[ix[l]] = a[r][l];
+                }
+            }
+        } else if (sh == -1) {
+            /* |A_rl| <= 2^30 (att_fx_block_row): doubled within the word but at +-2^30 */
+            for (l = 0; l < ATT_N; ++l) {
+                if (l < base || l >= base + NR) {
+                    const int32_t al1 = a[r][l];
+                    c->c[ix[l]] = ((uint32_t)al1 + ((1u << 30) - 1u) < (1u << 31) - 1u) ? (int32_t)((uint32_t)al1 << 1)
+                                  : (al1 > 0)                                          ? INT32_MAX
+                                                                                       : -INT32_MAX;
                 }
             }
         } else if (sh > 0 && sh < 32) {
@@ -259,7 +252,8 @@ ekf_status_t att_cov_predict(att_cov_t *c, const ekf_scalar_t d1[ATT_GEN_F1_NNZ]
 static ekf_scalar_t ratio_q(ekf_scalar_t a, ekf_scalar_t b)
 {
     const int la = ekf_fx_bitlen64((uint64_t)a), lb = ekf_fx_bitlen64((uint64_t)b);
-    const uint32_t ah = (uint32_t)att_fx_to_c(a, la - 31), bh = (uint32_t)((uint64_t)b << (64 - lb) >> 32);
+    /* bh: b's top 32 bits (b < 2^63: the shift by 63 - lb loses none, and is defined for b = 0) */
+    const uint32_t ah = (uint32_t)att_fx_to_c(a, la - 31), bh = (uint32_t)((uint64_t)b << (63 - lb) >> 31);
     /* a / b = ah 2^(la - 31) / (bh 2^(lb - 32)); ah / bh = ah recip(bh) 2^-63 */
     return att_fx_to_q((int64_t)(((uint64_t)ah * ekf_fx_recip32(bh)) >> 32), -(la - 31 - (lb - 32) - 31 + EKF_FX_FRAC));
 }
@@ -287,7 +281,7 @@ static ekf_status_t gate_test(ekf_scalar_t nu, ekf_scalar_t s, ekf_scalar_t gate
 static int64_t shift_pos(int64_t v, int s)
 {
     if (s > 0) {
-        return (s >= 63) ? 0 : (v + ((int64_t)1 << (s - 1))) >> s;
+        return att_fx_round_shr(v, s);
     }
     if (v == 0 || s == 0) {
         return v;
@@ -341,8 +335,9 @@ static ekf_status_t update(att_cov_t *c, ekf_scalar_t x[ATT_N], const int32_t v[
     }
     /* T = gamma v in Q2.30, the new variances c_ii - T_i v_i, the new state */
     for (i = 0; i < ATT_N; ++i) {
-        T[i] = (int32_t)(((int64_t)v[i] * gamma30 + (1 << 28)) >> 29);
-        dg[i] = (int32_t)((uint32_t)c->c[att_fx_dg[i]] - (mul_hi_round(T[i], v[i]) << 2));
+        /* (|T_i| < 2 for a positive semi-definite c: saturated, like every word, beyond) */
+        T[i] = att_fx_sat(((int64_t)v[i] * gamma30 + (1 << 28)) >> 29);
+        dg[i] = sub_rank1(c->c[att_fx_dg[i]], T[i], v[i]);
         if (i != k && dg[i] < -ATT_FX_TOL) {
             return EKF_ERR_NUMERIC; /* indefinite beyond rounding: no floor hides it */
         }
@@ -386,7 +381,7 @@ static ekf_status_t update(att_cov_t *c, ekf_scalar_t x[ATT_N], const int32_t v[
             x[i] = xn[i];
             *p++ = dg[i];
             for (j = i + 1; j < ATT_N; ++j) {
-                *p = (int32_t)((uint32_t)*p - (mul_hi_round(ti, *vj++) << 2));
+                *p = sub_rank1(*p, ti, *vj++);
                 ++p;
             }
         }
@@ -425,8 +420,12 @@ static ekf_status_t update(att_cov_t *c, ekf_scalar_t x[ATT_N], const int32_t v[
         int32_t *d = &c->c[att_fx_dg[i]];
         if (*d < ATT_FX_C_ONE || c->e[i] <= ef) {
             const int32_t fl = att_fx_floor_c(c, i, var_floor);
-            *d = (*d < fl) ? fl : *d;
-            att_fx_renorm(c, i);
+            if (fl == INT32_MAX) {
+                att_fx_floor_var(c, i, var_floor); /* rare: a floor this scale cannot hold */
+            } else {
+                *d = (*d < fl) ? fl : *d;
+                att_fx_renorm(c, i);
+            }
         }
     }
     return EKF_OK;

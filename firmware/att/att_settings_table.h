@@ -44,26 +44,26 @@ extern "C" {
 
 #define ATT_SETTINGS_MAIN(X) \
     /* process model */ \
-    X(rate_walk, S, 2.0, 2.0, 1e-6, 1e6, POS2, 1, "rad/s/sqrt(s)", \
+    X(rate_walk, S, 2.0, 2.0, 0.1, 1e3, POS2, 1, "rad/s/sqrt(s)", \
       "body-rate random walk: the rate changes by N(0, rate_walk^2 dt) per axis over dt") \
     X(angle_walk, S, 0.001, 0.001, 0, 1e6, ZPOS2, 1, "rad/sqrt(s)", \
       "extra angle random walk (model error)") \
     X(angle_walk_rate, S, 0.0015, 0.0015, 0, 1, ANY, 1, "sqrt(s)", \
       "angle random walk per rad/s of body rate (gyroscope scale and misalignment errors); " \
       "reported covariance only") \
-    X(euler_rate_rel, S, 0.001, 0.001, 1e-6, 1, ANY, 1, "1", \
+    X(euler_rate_rel, S, 0.001, 0.001, 3e-4, 1, ANY, 1, "1", \
       "independent error of each Euler rate and angle increment, fraction of its variance; " \
       "keeps P well conditioned") \
     /* gyroscope */ \
-    X(gyro_noise, S, 2.958e-4, 2.958e-4, 1e-9, 1e6, POS2, 1, "rad/sqrt(s)", \
+    X(gyro_noise, S, 2.958e-4, 2.958e-4, 1e-9, 100, POS2, 1, "rad/sqrt(s)", \
       "gyroscope white-noise density (angle random walk): a sample of interval dt has " \
       "variance gyro_noise^2 / dt per axis") \
     X(gyro_gate, S, 0, 0, 0, 1e6, FIN2, 1, "sigma", "gyroscope innovation gate; 0 = off") \
-    X(gyro_range, S, 40, 40, 1e-3, 1e6, ANY, 1, "rad/s", \
+    X(gyro_range, S, 40, 40, 1e-3, 100, ANY, 1, "rad/s", \
       "gyroscope full scale: a sample with a component at or beyond it is saturated") \
     /* accelerometer */ \
     X(gravity, S, 9.81, 9.81, 0.1, 1e6, FIN2, 1, "m/s^2", "magnitude of gravity") \
-    X(accel_noise, S, 0.041413, 0.041413, 1e-9, 1e6, POS2, 1, "m/s^2*sqrt(s)", \
+    X(accel_noise, S, 0.041413, 0.041413, 1e-9, 100, POS2, 1, "m/s^2*sqrt(s)", \
       "accelerometer noise density incl. unmodelled motion: a sample of interval dt has " \
       "variance accel_noise^2 / dt per axis") \
     X(accel_band, S, 0, 0, 0, 1e6, ANY, 1, "m/s^2", \
@@ -72,7 +72,7 @@ extern "C" {
       "| |a| - g | above which a sample is not fused") \
     X(accel_adapt_tau, S, 0.5, 0.5, 0, 1e6, ANY, 1, "s", \
       "time constant of the running linear-acceleration variance (adaptive noise); 0 = off") \
-    X(accel_adapt_weight, S, 0.0035, 0.0035, 0, 1e3, ANY, 1, "s", \
+    X(accel_adapt_weight, S, 0.0035, 0.0035, 0, 100, ANY, 1, "s", \
       "the running linear-acceleration variance v enters the accelerometer's density^2 as " \
       "v accel_adapt_weight") \
     X(accel_lpf_tau, S, 1.0, 1.0, 0, 1e6, ANY, 1, "s", \
@@ -86,7 +86,7 @@ extern "C" {
     X(accel_ref_sigma, S, 0.005, 0.005, 0, 1.5707963267948966, ANY, 1, "rad", \
       "gravity-direction error that averaging cannot remove; reported covariance only") \
     /* magnetometer */ \
-    X(mag_heading_noise, S, 0.015, 0.015, 1e-9, 1e3, POS2, 1, "rad*sqrt(s)", \
+    X(mag_heading_noise, S, 0.015, 0.015, 1e-9, 100, POS2, 1, "rad*sqrt(s)", \
       "magnetic heading noise density: a sample of interval dt has variance " \
       "mag_heading_noise^2 / dt") \
     X(mag_gate, S, 3, 3, 0, 1e6, FIN2, 1, "sigma", "heading innovation gate; 0 = off") \
@@ -119,10 +119,10 @@ extern "C" {
     X(gate_timeout, S, 1, 1, 0, 1e6, ANY, 1, "s", \
       "continuous gating of the gyroscope or accelerometer after which its gate is bypassed; " \
       "0 = never") \
-    X(gimbal_limit, S, 1.55, 1.55, 0.1, 1.5697963267948966, ANY, 1, "rad", \
+    X(gimbal_limit, S, 1.55, 1.55, 0.1, 1.56, ANY, 1, "rad", \
       "|pitch| above which the heading is held (ATT_FLAG_GIMBAL_LOCK)") \
     X(dt_max, S, 0.5, 0.5, 1e-6, 60, ANY, 1, "s", "longest accepted time step") \
-    X(heading_var_max, S, 9.869604401089358, 9.869604401089358, 1e-6, 1e6, ANY, 1, "rad^2", \
+    X(heading_var_max, S, 9.869604401089358, 9.869604401089358, 1e-5, 1e6, ANY, 1, "rad^2", \
       "cap on the heading variance (>= var_floor)") \
     X(var_floor, S, 1e-10, 1e-9, 1e-30, 1e-2, ANY, 1, "rad^2, (rad/s)^2", \
       "floor of every state variance") \
@@ -131,7 +131,7 @@ extern "C" {
       "initial roll and pitch sigma") \
     X(init_heading_sigma, S, 0.2, 0.2, 1e-6, 6.283185307179586, POS2, 1, "rad", \
       "initial heading sigma with a magnetometer") \
-    X(init_rate_sigma, S, 0.1, 0.1, 1e-6, 1e6, POS2, 1, "rad/s", "initial body-rate sigma") \
+    X(init_rate_sigma, S, 0.1, 0.1, 1e-6, 1e3, POS2, 1, "rad/s", "initial body-rate sigma") \
     X(align_samples, U16, 10, 10, 1, 65535, ANY, 1, "samples", \
       "accelerometer samples averaged for the alignment")
 

@@ -14,16 +14,15 @@
 #define FRAC EKF_FX_FRAC
 #define ONE_U ((uint64_t)1 << FRAC)
 
-static uint32_t g_saturations;
-
-uint32_t ekf_fx_saturations(void) { return g_saturations; }
-void ekf_fx_saturations_reset(void) { g_saturations = 0u; }
+#if defined(EKF_FX_SATURATION_HOOK)
+void EKF_FX_SATURATION_HOOK(void);
+#endif
 
 ekf_fx_t ekf_fx_saturate(int sign)
 {
-    if (g_saturations != UINT32_MAX) {
-        ++g_saturations;
-    }
+#if defined(EKF_FX_SATURATION_HOOK)
+    EKF_FX_SATURATION_HOOK();
+#endif
     return (sign >= 0) ? EKF_FX_INF : EKF_FX_NINF;
 }
 

@@ -16,14 +16,17 @@
  * square roots in 32-bit arithmetic.
  *
  * Infinity and saturation: INT64_MAX and -INT64_MAX are +inf and -inf. An operation whose
- * exact result lies outside the range returns the infinity of its sign and counts one
- * saturation event (ekf_fx_saturations()). There is no NaN: what IEEE arithmetic makes NaN
- * (inf - inf, 0 * inf, 0 / 0, inf / inf, sqrt(x < 0), a NaN input) is +inf here, counted
- * when it arises from finite operands. An infinite operand gives a non-finite result
- * without a new count (x / inf = 0, as in IEEE), so non-finiteness propagates like NaN
- * and Inf do, and ekf_fx_isfinite() is false for it: every finiteness check of the
- * filter refuses a saturated result exactly like an IEEE overflow, and a saturation never
- * passes silently into the state. INT64_MIN is never produced; it reads as -inf.
+ * exact result lies outside the range returns the infinity of its sign (a saturation, made
+ * by ekf_fx_saturate). There is no NaN: what IEEE arithmetic makes NaN (inf - inf, 0 * inf,
+ * 0 / 0, inf / inf, sqrt(x < 0), a NaN input) is +inf here, a saturation when it arises from
+ * finite operands. An infinite operand gives a non-finite result without a new saturation
+ * (x / inf = 0, as in IEEE), so non-finiteness propagates like NaN and Inf do, and
+ * ekf_fx_isfinite() is false for it: every finiteness check of the filter refuses a
+ * saturated result exactly like an IEEE overflow, and a saturation never passes silently
+ * into the state. INT64_MIN is never produced; it reads as -inf. The library keeps no count
+ * (no state outside the caller's structs): a build may define EKF_FX_SATURATION_HOOK as the
+ * name of a function void f(void), called once per saturation; the tests count them so
+ * (tests/c/support/fx_count.h).
  *
  * Operations and their error bounds, checked by tests/c/test_fixed.c against double
  * (LSB = 2^-EKF_FX_FRAC):
@@ -72,11 +75,8 @@ typedef int64_t ekf_fx_t;
  * constant argument. Only for constants: run-time values enter through ekf_fx_from_*. */
 #define EKF_FX_C(x) ((ekf_fx_t)((double)(x) * EKF_FX_SCALE + (((double)(x) < 0.0) ? -0.5 : 0.5)))
 
-/* Saturation events since start or the last reset (saturates at UINT32_MAX). Global to the
- * program: several filter instances share it. */
-uint32_t ekf_fx_saturations(void);
-void ekf_fx_saturations_reset(void);
-/* Counts one event and returns the infinity of the given sign (>= 0: +inf). */
+/* A saturation: the infinity of the given sign (>= 0: +inf); calls EKF_FX_SATURATION_HOOK
+ * if the build defines it. */
 ekf_fx_t ekf_fx_saturate(int sign);
 
 static inline int ekf_fx_isfinite(ekf_fx_t a) { return (a < EKF_FX_INF && a > EKF_FX_NINF) ? 1 : 0; }

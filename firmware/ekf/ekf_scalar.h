@@ -127,10 +127,6 @@ static inline int ekf_isfinite(ekf_scalar_t a) { return ekf_fx_isfinite(a); }
 /* Branch-free finiteness of many values (see the IEEE version): acc stays zero while
  * every value is finite, else it becomes non-zero. */
 static inline ekf_scalar_t ekf_finite_acc(ekf_scalar_t acc, ekf_scalar_t a) { return ekf_fx_isfinite(a) ? acc : (ekf_scalar_t)1; }
-/* Operations whose exact result was outside the format's range since start (or reset),
- * program-wide (ekf_fixed.h). 0 in normal operation; docs/fixed_point.md. */
-static inline uint32_t ekf_scalar_saturations(void) { return ekf_fx_saturations(); }
-static inline void ekf_scalar_saturations_reset(void) { ekf_fx_saturations_reset(); }
 
 #else
 #error "ekf_scalar.h: no scalar type selected (see ekf_config.h)"
@@ -160,9 +156,6 @@ static inline ekf_scalar_t ekf_finite_acc(ekf_scalar_t acc, ekf_scalar_t a) { re
 static inline ekf_scalar_t ekf_from_double(double a) { return (ekf_scalar_t)a; }
 static inline double ekf_to_double(ekf_scalar_t a) { return (double)a; }
 static inline ekf_scalar_t ekf_from_int(int32_t a) { return (ekf_scalar_t)a; }
-/* IEEE types overflow to inf, which the filter's finiteness checks catch; no counter. */
-static inline uint32_t ekf_scalar_saturations(void) { return 0u; }
-static inline void ekf_scalar_saturations_reset(void) {}
 #endif
 
 /* v, or exactly 0 if |v| < EKF_SCALAR_TINY (1e-30 in the IEEE builds, far below any

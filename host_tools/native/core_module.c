@@ -214,23 +214,6 @@ static PyObject *status_name(PyObject *self, PyObject *arg)
     return PyUnicode_FromString(ekf_status_str((ekf_status_t)code));
 }
 
-/* Fixed-point build: operations that saturated the Q format since load or the last reset
- * (program-wide, docs/fixed_point.md); always 0 for float and double. */
-static PyObject *saturations(PyObject *self, PyObject *unused)
-{
-    (void)self;
-    (void)unused;
-    return PyLong_FromUnsignedLong(ekf_scalar_saturations());
-}
-
-static PyObject *saturations_reset(PyObject *self, PyObject *unused)
-{
-    (void)self;
-    (void)unused;
-    ekf_scalar_saturations_reset();
-    Py_RETURN_NONE;
-}
-
 /* ------------------------------------------------------------------------------------
  * Settings type: an att_settings_t, the defaults when created.
  * ------------------------------------------------------------------------------------ */
@@ -345,8 +328,6 @@ static PyMethodDef module_methods[] = {
     {"tables_complete", tables_complete, METH_NOARGS,
      "tables_complete() -> (settings table tiles att_settings_t, diagnostics tables tile att_diag_t)"},
     {"status_name", status_name, METH_O, "status_name(code) -> ekf_status_str(code)"},
-    {"saturations", saturations, METH_NOARGS, "fixed point: saturated operations so far (0 otherwise)"},
-    {"saturations_reset", saturations_reset, METH_NOARGS, "sets saturations() to 0"},
     {NULL, NULL, 0, NULL}};
 
 static struct PyModuleDef module_def = {

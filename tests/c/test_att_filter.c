@@ -414,7 +414,7 @@ static void test_gyro_saturation_tumble_recovers(void)
     }
     printf("saturated tumble: error %.2f deg 3 s after, %.2f deg 5 s after (flags 0x%x, heading resets %u)\n",
            err / DEG, est_error(&f, &sim) / DEG, (unsigned)att_flags(&f), (unsigned)att_diag(&f)->heading_resets);
-    TEST_ASSERT_TRUE(err < 3.0 * DEG);
+    TEST_ASSERT_TRUE(err < 2.5 * DEG);
     TEST_ASSERT_TRUE(est_error(&f, &sim) < 1.0 * DEG);
 }
 

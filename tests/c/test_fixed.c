@@ -9,10 +9,11 @@
 #include <stdio.h>
 
 #include "ekf.h"
+#include "fx_count.h"
 #include "testsim.h"
 #include "unity.h"
 
-void setUp(void) { ekf_scalar_saturations_reset(); }
+void setUp(void) { fx_count_reset(); }
 void tearDown(void) {}
 
 #define LSB (1.0 / (double)EKF_FX_ONE)
@@ -57,12 +58,12 @@ static void test_constants_and_conversions(void)
     TEST_ASSERT_FALSE(ekf_isfinite(ekf_from_double((double)NAN)));
     TEST_ASSERT_FALSE(ekf_isfinite(ekf_from_double(-(double)INFINITY)));
     TEST_ASSERT_FALSE(ekf_isfinite(ekf_from_float(NAN)));
-    TEST_ASSERT_EQUAL_UINT32(0u, ekf_scalar_saturations());
+    TEST_ASSERT_EQUAL_UINT32(0u, fx_count_saturations());
     TEST_ASSERT_TRUE(isinf(ekf_to_double(ekf_from_double((double)INFINITY))));
     /* finite but out of range: saturated and counted */
     TEST_ASSERT_FALSE(ekf_isfinite(ekf_from_double(1e12)));
     TEST_ASSERT_FALSE(ekf_isfinite(ekf_from_int(INT32_MIN)));
-    TEST_ASSERT_EQUAL_UINT32(2u, ekf_scalar_saturations());
+    TEST_ASSERT_EQUAL_UINT32(2u, fx_count_saturations());
 }
 
 static void test_saturation_counted_and_propagated(void)
@@ -73,21 +74,21 @@ static void test_saturation_counted_and_propagated(void)
     s = ekf_add(big, big);
     TEST_ASSERT_FALSE(ekf_isfinite(s));
     TEST_ASSERT_TRUE(s > 0);
-    TEST_ASSERT_EQUAL_UINT32(1u, ekf_scalar_saturations());
+    TEST_ASSERT_EQUAL_UINT32(1u, fx_count_saturations());
     /* an infinite operand: non-finite result, no new count */
     TEST_ASSERT_FALSE(ekf_isfinite(ekf_sub(s, big)));
     TEST_ASSERT_FALSE(ekf_isfinite(ekf_mul(s, EKF_C(1e-6))));
     TEST_ASSERT_FALSE(ekf_isfinite(ekf_mul(s, EKF_C(0))));   /* 0 * inf: not a number */
     TEST_ASSERT_FALSE(ekf_isfinite(ekf_add(s, ekf_neg(s)))); /* inf - inf */
     TEST_ASSERT_TRUE(ekf_div(EKF_C(3), s) == 0);              /* x / inf = 0 */
-    TEST_ASSERT_EQUAL_UINT32(1u, ekf_scalar_saturations());
+    TEST_ASSERT_EQUAL_UINT32(1u, fx_count_saturations());
     /* products, quotients, negative overflow, division by zero, sqrt of a negative */
     TEST_ASSERT_TRUE(ekf_mul(ekf_mul(root, EKF_C(-2)), ekf_mul(root, EKF_C(2))) == EKF_FX_NINF);
     TEST_ASSERT_TRUE(ekf_div(big, EKF_C(0.25)) == EKF_FX_INF);
     TEST_ASSERT_TRUE(ekf_div(EKF_C(-1.0), EKF_C(0)) == EKF_FX_NINF);
     TEST_ASSERT_TRUE(ekf_add(ekf_neg(big), ekf_neg(big)) == EKF_FX_NINF);
     TEST_ASSERT_FALSE(ekf_isfinite(ekf_sqrt(EKF_C(-1.0))));
-    TEST_ASSERT_EQUAL_UINT32(6u, ekf_scalar_saturations());
+    TEST_ASSERT_EQUAL_UINT32(6u, fx_count_saturations());
     /* the core's finiteness checks refuse saturated values */
     {
         ekf_scalar_t v[3] = {EKF_C(1), EKF_C(2), EKF_C(3)};
@@ -96,10 +97,10 @@ static void test_saturation_counted_and_propagated(void)
         TEST_ASSERT_EQUAL_INT(0, ekf_all_finite(v, 3));
     }
     /* in range: nothing counted, exact */
-    ekf_scalar_saturations_reset();
+    fx_count_reset();
     TEST_ASSERT_TRUE(ekf_add(EKF_C(8000000.0), EKF_C(388607.0)) == EKF_C(8388607.0));
     TEST_ASSERT_TRUE(ekf_mul(EKF_C(2896.0), EKF_C(2896.0)) == EKF_C(8386816.0));
-    TEST_ASSERT_EQUAL_UINT32(0u, ekf_scalar_saturations());
+    TEST_ASSERT_EQUAL_UINT32(0u, fx_count_saturations());
 }
 
 /* mul is the correctly rounded product, ties toward +inf; exact check on operands whose
@@ -131,7 +132,7 @@ static void test_mul_correctly_rounded(void)
         const double want = d(a) * d(b);
         TEST_ASSERT_TRUE(fabs(d(ekf_mul(a, b)) - want) <= 0.5 * LSB + fabs(want) * 3e-16);
     }
-    TEST_ASSERT_EQUAL_UINT32(0u, ekf_scalar_saturations());
+    TEST_ASSERT_EQUAL_UINT32(0u, fx_count_saturations());
 }
 
 static void test_div_correctly_rounded(void)
@@ -161,7 +162,7 @@ static void test_div_correctly_rounded(void)
     TEST_ASSERT_TRUE(n > TRIALS / 2);
     TEST_ASSERT_TRUE(ekf_div(EKF_C(1), EKF_C(3)) == (EKF_FX_ONE + 1) / 3);
     TEST_ASSERT_TRUE(ekf_div(EKF_C(-7), EKF_C(2)) == EKF_C(-3.5));
-    TEST_ASSERT_EQUAL_UINT32(0u, ekf_scalar_saturations());
+    TEST_ASSERT_EQUAL_UINT32(0u, fx_count_saturations());
 }
 
 /* The restoring long division the library used before its reciprocal-based one, as the
@@ -211,13 +212,13 @@ static void test_div_equals_long_division(void)
         const ekf_scalar_t a = random_raw(&r), b = random_raw(&r);
         const ekf_scalar_t want = div_reference(a, b);
         ekf_scalar_t got;
-        ekf_scalar_saturations_reset();
+        fx_count_reset();
         got = ekf_div(a, b);
         if (got != want) {
             printf("div raw %lld / %lld: got %lld, want %lld\n", (long long)a, (long long)b, (long long)got, (long long)want);
             TEST_FAIL();
         }
-        TEST_ASSERT_EQUAL_UINT32(ekf_isfinite(want) ? 0u : 1u, ekf_scalar_saturations());
+        TEST_ASSERT_EQUAL_UINT32(ekf_isfinite(want) ? 0u : 1u, fx_count_saturations());
     }
     /* the divisor's top word all ones (the reciprocal at its clamp) and at its smallest */
     TEST_ASSERT_TRUE(ekf_div(EKF_C(1), (ekf_scalar_t)0x7FFFFFFFFFFFFFFELL) == div_reference(EKF_C(1), (ekf_scalar_t)0x7FFFFFFFFFFFFFFELL));
@@ -325,7 +326,7 @@ static void test_sqrt_error_bound(void)
         TEST_ASSERT_TRUE(ekf_sqrt(v) == (ekf_scalar_t)res);
     }
     printf("sqrt: worst relative error beyond 1 LSB %.3e (bound %.1e)\n", worst, SQRT_REL);
-    TEST_ASSERT_EQUAL_UINT32(0u, ekf_scalar_saturations());
+    TEST_ASSERT_EQUAL_UINT32(0u, fx_count_saturations());
 }
 
 static void check_sincos(double x, double *worst)
@@ -373,7 +374,7 @@ static void test_sin_cos_error_bound(void)
         TEST_ASSERT_TRUE(s == ekf_sin(a) && c == ekf_cos(a));
     }
     printf("sin/cos: worst absolute error %.3e (bound %.1e)\n", worst, SIN_COS_ABS);
-    TEST_ASSERT_EQUAL_UINT32(0u, ekf_scalar_saturations());
+    TEST_ASSERT_EQUAL_UINT32(0u, fx_count_saturations());
 }
 
 static void test_atan2_error_bound(void)
@@ -406,7 +407,7 @@ static void test_atan2_error_bound(void)
     TEST_ASSERT_TRUE(ekf_atan2(EKF_C(-1), 0) == ekf_neg(EKF_HALF_PI));
     TEST_ASSERT_TRUE(ekf_atan2(EKF_C(2), EKF_C(2)) == EKF_C(0.78539816339744830962));
     printf("atan2: worst absolute error %.3e (bound %.1e)\n", worst, ATAN2_ABS);
-    TEST_ASSERT_EQUAL_UINT32(0u, ekf_scalar_saturations());
+    TEST_ASSERT_EQUAL_UINT32(0u, fx_count_saturations());
 }
 
 static void test_floor_and_wrap(void)
@@ -501,7 +502,7 @@ static void test_core_update_matches_double(void)
         TEST_ASSERT_TRUE(ts_is_symmetric_exact(P, N));
         TEST_ASSERT_TRUE(ts_is_positive_definite(P, N, &pivot));
     }
-    TEST_ASSERT_EQUAL_UINT32(0u, ekf_scalar_saturations());
+    TEST_ASSERT_EQUAL_UINT32(0u, fx_count_saturations());
 }
 
 int main(void)

@@ -8,9 +8,10 @@
 #include <math.h>
 
 #include "ekf_fixed.h"
+#include "fx_count.h"
 #include "unity.h"
 
-void setUp(void) { ekf_fx_saturations_reset(); }
+void setUp(void) { fx_count_reset(); }
 void tearDown(void) {}
 
 #define MAX_FINITE (EKF_FX_INF - 1)
@@ -20,8 +21,8 @@ void tearDown(void) {}
 static void expect(ekf_fx_t got, ekf_fx_t want, uint32_t counted)
 {
     TEST_ASSERT_TRUE(got == want);
-    TEST_ASSERT_EQUAL_UINT32(counted, ekf_fx_saturations());
-    ekf_fx_saturations_reset();
+    TEST_ASSERT_EQUAL_UINT32(counted, fx_count_saturations());
+    fx_count_reset();
 }
 
 static void test_floor_never_gives_an_uncounted_minus_inf(void)
@@ -32,8 +33,8 @@ static void test_floor_never_gives_an_uncounted_minus_inf(void)
     for (k = 0; k < 5; ++k) {
         const ekf_fx_t r = ekf_fx_floor(MIN_FINITE + k);
         TEST_ASSERT_TRUE(r == EKF_FX_NINF);
-        TEST_ASSERT_EQUAL_UINT32(1u, ekf_fx_saturations());
-        ekf_fx_saturations_reset();
+        TEST_ASSERT_EQUAL_UINT32(1u, fx_count_saturations());
+        fx_count_reset();
     }
     /* the most negative finite integer is its own floor; one LSB above it floors to it */
     {

@@ -3,8 +3,10 @@
  * sensor values, time steps, validity masks and public calls. Built for float (fuzz_att_f,
  * what ships), double (fuzz_att_d) and Q-format fixed point (fuzz_att_x).
  *
- * Input: a settings block (each field kept at its default, scaled by a power of two, or
- * replaced by an arbitrary value; att_init must accept or refuse it with
+ * Input: a settings block (first byte < 64: the defaults; 240 and above: every setting of
+ * the table (att_setting_info) kept at its default, set to its lower or upper bound, scaled
+ * by a power of two, or replaced by an arbitrary value; otherwise the 28 fields of the older
+ * layout, kept, scaled or arbitrary; att_init must accept or refuse it with
  * EKF_ERR_SETTINGS), then calls: dt, valid, gyro, accel, mag, each value ordinary, extreme
  * or non-finite (fuzz_common.h, fz_real). Bits 0-3 of valid are the sample's ATT_HAS_* /
  * ATT_GYRO_SATURATED bits, bit 7 asks for sensible values, bits 4-6 choose the call:
@@ -73,6 +75,33 @@ static ekf_scalar_t fuzz_setting(fz_t *z, ekf_scalar_t def)
     return ekf_from_double(fz_real(z, 10.0));
 }
 
+/* Every setting of the table: default, its lower or upper bound, scaled by 2^-20 .. 2^19, or
+ * arbitrary (a count: any 16-bit value); att_setting_set keeps a value outside the setting's
+ * own range out, the settings check the rest. */
+static void fuzz_table(fz_t *z, att_settings_t *s)
+{
+    size_t i;
+    for (i = 0; i < att_setting_count(); ++i) {
+        const att_setting_info_t *info = att_setting_info(i);
+        const uint8_t how = fz_u8(z);
+        ekf_scalar_t v;
+        if (how < 128u) {
+            continue;
+        }
+        (void)att_setting_get(s, i, &v);
+        if (how < 160u) {
+            v = info->lo;
+        } else if (how < 192u) {
+            v = info->hi;
+        } else if (how < 232u) {
+            v = ekf_from_double(ldexp(ekf_to_double(v), (int)(how % 40u) - 20));
+        } else {
+            v = (info->type == ATT_SETTING_U16) ? ekf_from_int((int32_t)fz_u16(z)) : ekf_from_double(fz_real(z, 10.0));
+        }
+        (void)att_setting_set(s, i, v);
+    }
+}
+
 /* Returns 1 if the settings are the defaults. */
 static int fuzz_settings(fz_t *z, att_settings_t *s)
 {
@@ -85,9 +114,14 @@ static int fuzz_settings(fz_t *z, att_settings_t *s)
         &s->init_rate_sigma,
     };
     size_t i;
+    const uint8_t mode = fz_u8(z);
     *s = att_default_settings;
-    if (fz_u8(z) < 64u) {
+    if (mode < 64u) {
         return 1; /* a quarter of the inputs run the defaults */
+    }
+    if (mode >= 240u) {
+        fuzz_table(z, s);
+        return 0;
     }
     for (i = 0; i < sizeof(fields) / sizeof(fields[0]); ++i) {
         *fields[i] = fuzz_setting(z, *fields[i]);
@@ -253,7 +287,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
                      d->accel_gated >= prev.accel_gated && d->mag_gated >= prev.mag_gated &&
                      d->accel_skipped >= prev.accel_skipped && d->mag_skipped >= prev.mag_skipped &&
                      d->rejected >= prev.rejected && d->numeric >= prev.numeric && d->remaps >= prev.remaps &&
-                     d->cov_repairs >= prev.cov_repairs,
+                     d->cov_repairs >= prev.cov_repairs && d->heading_resets >= prev.heading_resets &&
+                     d->gyro_saturated >= prev.gyro_saturated,
                  "a counter decreased");
         FZ_CHECK(d->gyro_fused + d->gyro_gated - prev.gyro_fused - prev.gyro_gated <= 3u, "gyro updates");
         prev = *d;

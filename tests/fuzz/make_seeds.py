@@ -58,6 +58,23 @@ settings += bytes([0] * 5 + [250] + [0] * 22) + bytes([205])
 write("fuzz_att", "settings", settings + att_structured(40, 47, lambda k: (3, 3, 3), lambda k: 8)[1:])
 
 
+def setting_count():
+    """Rows of firmware/att/att_settings_table.h (the table fuzz_att's mode 240 walks)."""
+    path = os.path.join(HERE, "..", "..", "firmware", "att", "att_settings_table.h")
+    with open(path) as fh:
+        return sum(1 for line in fh if line.lstrip().startswith("X("))
+
+
+def att_table(choice):
+    """Mode 240: one byte per setting (< 128 default, 128 lower bound, 160 upper bound)."""
+    return bytearray([240]) + bytes(choice(i) for i in range(setting_count()))
+
+
+motion = att_structured(80, 47, lambda k: (6, -4, 9), lambda k: 12)[1:]
+write("fuzz_att", "settings_table_lower", att_table(lambda i: 128 if i % 7 == 3 else 0) + motion)
+write("fuzz_att", "settings_table_upper", att_table(lambda i: 160 if i % 7 == 5 else 0) + motion)
+
+
 # ---- fuzz_can: op 2 = a sample encoded as the IMU does --------------------------------
 def can_sample(mode=0, valid=7, dt_byte=20):
     out = bytearray([2, dt_byte, mode, valid])

@@ -69,7 +69,7 @@ def test_eval_settings_and_scalar(tmp_path, capsys):
     (["eval", "{d}/bad.csv"], 1, "bad.csv: line 3: t_s"),
     (["eval", "{d}/a.csv", "--set", "nope=1"], 2, "unknown setting 'nope'"),
     (["eval", "{d}/a.csv", "--set", "accel_noise"], 2, "expected NAME=VALUE"),
-    (["eval", "{d}/a.csv", "--set", "gimbal_limit=3"], 2, "gimbal_limit: 3.0 is not in [0.1, 1.5698] (rad)"),
+    (["eval", "{d}/a.csv", "--set", "gimbal_limit=3"], 2, "gimbal_limit: 3.0 is not in [0.1, 1.56] (rad)"),
     (["eval", "{d}", "--output-csv", "{d}/a.csv"], 2, "--output-csv scores one recording, 2 given"),
     (["eval", "{d}/a.csv", "--output-csv", "{d}/a.csv"], 1, "missing column(s) roll_rad"),
     (["eval"], 2, "no recording given"),

@@ -65,7 +65,7 @@ def test_run_hdf5_ned_and_mounting(rec_csv, tmp_path):
     (["run", "REC", "-o", "x.txt"], "unknown output format '.txt'"),
     (["run", "REC", "-o", "x.csv", "--mounting", "1,0,0,0,1,0,0,0,-1"], "--mounting: not a rotation matrix"),
     (["run", "REC", "-o", "x.csv", "--mounting", "1,2"], "invalid rotation matrix (9 numbers) value"),
-    (["run", "REC", "-o", "x.csv", "--set", "gimbal_limit=3"], "gimbal_limit: 3.0 is not in [0.1, 1.5698]"),
+    (["run", "REC", "-o", "x.csv", "--set", "gimbal_limit=3"], "gimbal_limit: 3.0 is not in [0.1, 1.56]"),
 ])
 def test_run_usage_errors(rec_csv, tmp_path, capsys, args, fragment):
     args = [str(rec_csv) if a == "REC" else str(tmp_path / a) if a.startswith("x.") else a for a in args]

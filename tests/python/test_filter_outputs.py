@@ -191,7 +191,7 @@ def test_settings_from_toml_and_json(tmp_path):
     ("bad.json", '{"rest": {"rest_gyro": true}}', InputError, "setting 'rest.rest_gyro': true is not a number"),
     ("bad.json", '{"rest.rest_gyro": 1, "rest": {"rest_gyro": 2}}', InputError, "'rest.rest_gyro' given twice"),
     ("bad.json", '{"acel_noise": 0.3}', attekf.SettingsError, "unknown setting 'acel_noise'"),
-    ("bad.toml", "gimbal_limit = 2.0\n", attekf.SettingsError, "gimbal_limit: 2.0 is not in [0.1, 1.5698] (rad)"),
+    ("bad.toml", "gimbal_limit = 2.0\n", attekf.SettingsError, "gimbal_limit: 2.0 is not in [0.1, 1.56] (rad)"),
 ])
 def test_settings_file_errors_name_the_file_and_field(tmp_path, name, text, error, fragment):
     (tmp_path / name).write_text(text)

@@ -99,7 +99,7 @@ def test_settings_change_the_run(sim_recording):
     ({"align_samples": 2.5}, "align_samples: 2.5 is not a whole number in [1, 65535] (samples)"),
     ({"gravity": float("nan")}, "gravity: nan is not a finite"),
     ({"gyro_noise": 1e300}, "gyro_noise: 1e+300 is not a finite float"),
-    ({"gimbal_limit": 2.0, "accel_noise": 0.3}, "gimbal_limit: 2.0 is not in [0.1, 1.5698] (rad)"),
+    ({"gimbal_limit": 2.0, "accel_noise": 0.3}, "gimbal_limit: 2.0 is not in [0.1, 1.56] (rad)"),
     ({"accel_noise": "x"}, "accel_noise: 'x' is not a number"),
     ({"accel_range": 5.0}, "att_settings_check (EKF_ERR_SETTINGS): accel_range=5.0"),
 ])

@@ -2,7 +2,7 @@
  * soak.c - long-run soak of the attitude estimator (docs/reliability.md, "Soak").
  *
  *     attekf-soak_f [--steps N] [--seed S] [--bound-deg B] [--settle-s S] [--max-repairs R]
- *                   [--quiet] [--trace FILE]
+ *                   [--setting-bound NAME:lo|NAME:hi] [--list-settings] [--quiet] [--trace FILE]
  *
  * Flies a simulated vehicle at 1 kHz (tests/c/support/testsim.c: exact attitude
  * integration, sensor noise, constant gyro bias) through random manoeuvre segments of
@@ -29,6 +29,9 @@
  * disturbance, |pitch| < 80 deg, at least --settle-s (default SETTLE_S) after the last fault
  * segment or tumble) it must stay below --bound-deg (default BENIGN_BOUND_DEG; 0 = report
  * only). The maximum over all time is reported.
+ * --setting-bound runs with one setting at its lower or upper bound, the others at their
+ * defaults (ts_setting_at_bound: the accepted value closest to the bound);
+ * scripts/soak_bounds.sh runs every bound so (--list-settings: the names).
  * Prints one summary line (key=value) at the end. --trace FILE writes a CSV row every
  * 10 ms (truth, estimate, error, heading sigma, segment and faults, flags) to find out
  * what a large error followed.
@@ -177,6 +180,7 @@ int main(int argc, char **argv)
     stats_t st;
     double t_seg = 0.0, since_fault_s = 0.0;
     const double dt_nominal = 0.001;
+    att_settings_t settings = att_default_settings;
 
     for (i = 1; i < argc; ++i) {
         if (strcmp(argv[i], "--steps") == 0 && i + 1 < argc) {
@@ -189,6 +193,27 @@ int main(int argc, char **argv)
             settle_s = atof(argv[++i]);
         } else if (strcmp(argv[i], "--max-repairs") == 0 && i + 1 < argc) {
             max_repairs = atof(argv[++i]);
+        } else if (strcmp(argv[i], "--setting-bound") == 0 && i + 1 < argc) {
+            char name[64];
+            const char *colon = strchr(argv[++i], ':');
+            const size_t len = (colon != NULL) ? (size_t)(colon - argv[i]) : 0u;
+            int idx = -1;
+            if (colon != NULL && len < sizeof name) {
+                memcpy(name, argv[i], len);
+                name[len] = '\0';
+                idx = att_setting_index(name);
+            }
+            if (idx < 0 || (strcmp(colon + 1, "lo") != 0 && strcmp(colon + 1, "hi") != 0) ||
+                ts_setting_at_bound(&settings, (size_t)idx, strcmp(colon + 1, "hi") == 0) != 0) {
+                fprintf(stderr, "%s: not a setting's bound (NAME:lo or NAME:hi, --list-settings)\n", argv[i]);
+                return 2;
+            }
+        } else if (strcmp(argv[i], "--list-settings") == 0) {
+            size_t n;
+            for (n = 0; n < att_setting_count(); ++n) {
+                printf("%s\n", att_setting_info(n)->name);
+            }
+            return 0;
         } else if (strcmp(argv[i], "--quiet") == 0) {
             quiet = 1;
         } else if (strcmp(argv[i], "--trace") == 0 && i + 1 < argc) {
@@ -201,7 +226,7 @@ int main(int argc, char **argv)
                            "roll_deg,pitch_deg,yaw_deg,est_roll_deg,est_pitch_deg,est_yaw_deg,err_deg,"
                            "heading_sigma_deg,flags\n");
         } else {
-            fprintf(stderr, "usage: %s [--steps N] [--seed S] [--bound-deg B] [--settle-s S] [--max-repairs R] [--quiet] [--trace FILE]\n", argv[0]);
+            fprintf(stderr, "usage: %s [--steps N] [--seed S] [--bound-deg B] [--settle-s S] [--max-repairs R] [--setting-bound NAME:lo|hi] [--list-settings] [--quiet] [--trace FILE]\n", argv[0]);
             return 2;
         }
     }
@@ -219,7 +244,7 @@ int main(int argc, char **argv)
     ts_rng_seed(&r, seed * 7919u + 17u);
     ts_sim_init(&sim, &cfg, seed, ts_uniform_in(&r, -0.5, 0.5), ts_uniform_in(&r, -0.5, 0.5),
                 ts_uniform_in(&r, -3.0, 3.0));
-    if (att_init(&f, &att_default_settings) != EKF_OK) {
+    if (att_init(&f, &settings) != EKF_OK) {
         return fail(0, "att_init");
     }
     memset(&prev, 0, sizeof(prev));

@@ -55,6 +55,90 @@ double ts_gauss(ts_rng_t *r)
     return sqrt(-2.0 * log(u1)) * cos(6.283185307179586 * u2);
 }
 
+static void maybe_corrupt(ts_rng_t *r, ekf_scalar_t v[3])
+{
+    if (ts_uniform(r) < 0.01) {
+        const int k = (int)(ts_uniform(r) * 3.0);
+        v[k] = ekf_from_double((ts_uniform(r) < 0.5) ? (double)NAN : (double)INFINITY);
+    }
+}
+
+void ts_stress_sample(ts_rng_t *r, const att_settings_t *s, att_sample_t *smp)
+{
+    const double u = ts_uniform(r);
+    int i;
+    smp->dt = ekf_from_double(exp(ts_uniform_in(r, log(1e-4), log(ekf_to_double(s->dt_max)))));
+    if (u < 0.0025) {
+        smp->dt = EKF_C(0);
+    } else if (u < 0.005) {
+        smp->dt = EKF_C(-0.01);
+    } else if (u < 0.0075) {
+        smp->dt = ekf_from_double((double)NAN);
+    } else if (u < 0.01) {
+        smp->dt = ekf_mul(s->dt_max, EKF_C(2));
+    }
+    for (i = 0; i < 3; ++i) {
+        smp->gyro[i] = ekf_from_double(ts_uniform_in(r, -1.05 * ekf_to_double(s->gyro_range), 1.05 * ekf_to_double(s->gyro_range)));
+    }
+    ts_random_direction(r, ts_uniform_in(r, 0.0, 3.0 * ekf_to_double(s->gravity)), smp->accel);
+    ts_random_direction(r, ts_uniform_in(r, 0.0, 100.0), smp->mag);
+    maybe_corrupt(r, smp->gyro);
+    maybe_corrupt(r, smp->accel);
+    maybe_corrupt(r, smp->mag);
+    smp->valid = 0u;
+    if (ts_uniform(r) < 0.8) {
+        smp->valid |= ATT_HAS_GYRO;
+    }
+    if (ts_uniform(r) < 0.8) {
+        smp->valid |= ATT_HAS_ACCEL;
+    }
+    if (ts_uniform(r) < 0.8) {
+        smp->valid |= ATT_HAS_MAG;
+    }
+}
+
+/* 1 if setting i at value v, the others at their defaults, passes the settings check. */
+static int accepted(size_t i, ekf_scalar_t v)
+{
+    att_settings_t s = att_default_settings;
+    return att_setting_set(&s, i, v) == EKF_OK && att_settings_check(&s) == EKF_OK;
+}
+
+int ts_setting_at_bound(att_settings_t *s, size_t i, int hi)
+{
+    const att_setting_info_t *info = att_setting_info(i);
+    ekf_scalar_t b, d;
+    double out, in;
+    int k;
+    *s = att_default_settings;
+    if (info == NULL || att_setting_get(s, i, &d) != EKF_OK) {
+        return -1;
+    }
+    b = hi ? info->hi : info->lo;
+    if (!accepted(i, b)) {
+        const int logs = ekf_to_double(b) > 0.0 && ekf_to_double(d) > 0.0;
+        if (info->type != ATT_SETTING_SCALAR || !accepted(i, d)) {
+            return -1;
+        }
+        out = ekf_to_double(d); /* accepted */
+        in = ekf_to_double(b);  /* refused */
+        for (k = 0; k < 80; ++k) {
+            const double mid = logs ? sqrt(out * in) : 0.5 * (out + in);
+            const ekf_scalar_t m = ekf_from_double(mid);
+            if (m == ekf_from_double(out) || m == ekf_from_double(in)) {
+                break;
+            }
+            if (accepted(i, m)) {
+                out = mid;
+            } else {
+                in = mid;
+            }
+        }
+        b = ekf_from_double(out);
+    }
+    return (att_setting_set(s, i, b) == EKF_OK && att_settings_check(s) == EKF_OK) ? 0 : -1;
+}
+
 void ts_euler_to_R(double phi, double theta, double psi, double R[9])
 {
     const double cr = cos(phi), sr = sin(phi), cp = cos(theta), sp = sin(theta), cy = cos(psi), sy = sin(psi);

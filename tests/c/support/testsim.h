@@ -23,6 +23,21 @@ double ts_uniform_in(ts_rng_t *r, double lo, double hi);
 void ts_random_direction(ts_rng_t *r, double norm, ekf_scalar_t out[3]);
 double ts_gauss(ts_rng_t *r);               /* N(0, 1) */
 
+/* One sample of the random stress input (tests/c/test_att_stress.c, test_att_bounds.c), from
+ * the settings s: dt log-uniform in [1e-4, dt_max] s (1 % invalid: 0, negative, NaN, twice
+ * dt_max); gyro uniform within +-1.05 gyro_range (about 5 % of samples out of range per axis);
+ * accel of norm 0 .. 3 gravity and mag of norm 0 .. 100 uT in random directions; each sensor
+ * present with probability 0.8; 1 % of vectors with a NaN or Inf component. */
+void ts_stress_sample(ts_rng_t *r, const att_settings_t *s, att_sample_t *smp);
+
+/* Setting i (att_setting_info) at its lower (hi = 0) or upper (hi = 1) bound in *s, the
+ * other settings at their defaults: the bound itself if the settings check accepts it, else
+ * the accepted value closest to it, by bisection towards the default (a bound that only makes
+ * sense with another setting changed too, such as a gravity above the default accelerometer
+ * range, or one that the fixed-point build cannot represent). 0, or -1 if nothing is
+ * accepted. */
+int ts_setting_at_bound(att_settings_t *s, size_t i, int hi);
+
 /* Rotation matrices (row-major 3x3), body to ENU. */
 void ts_euler_to_R(double phi, double theta, double psi, double R[9]);
 void ts_R_to_euler(const double R[9], double e[3]);
