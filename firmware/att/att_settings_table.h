@@ -155,9 +155,9 @@ extern "C" {
 
 /* The gyroscope offset learned in motion (att_bias.h): names "bias.*". */
 #define ATT_SETTINGS_BIAS(X) \
-    X(sigma_init, S, 0.0087, 0.0087, 0, 1e6, ANY, 1, "rad/s", \
+    X(sigma_init, S, 0.0087, 0.0087, 0, 1, ANY, 1, "rad/s", \
       "1 sigma of the offset before the first rest, per axis (<= gyro_range)") \
-    X(walk, S, 6.7e-5, 6.7e-5, 0, 1, ANY, 1, "rad/s/sqrt(s)", \
+    X(walk, S, 6.7e-5, 6.7e-5, 0, 0.01, ANY, 1, "rad/s/sqrt(s)", \
       "random walk of the offset (its instability)") \
     X(mag_derate, S, 30, 30, 1, 1e4, ANY, 1, "1", \
       "factor on the magnetometer innovations' variance in the offset's update") \
