@@ -263,7 +263,7 @@ def report(args, results):
     print("| stage | " + " | ".join(presets) + " |")
     print("|---|" + "---|" * len(presets))
     names = {"predict": "att_predict", "update_gyro": "att_update_gyro (3 scalar updates)",
-             "update_accel": "att_update_accel (3 scalar updates)", "update_mag": "att_update_mag (1 scalar update)",
+             "update_accel": "att_update_accel (2 scalar updates)", "update_mag": "att_update_mag (1 scalar update)",
              "step": "**full step** (att_step)", "stages_sum": "sum of stages"}
     for s in STAGES:
         cells = []
@@ -277,7 +277,7 @@ def report(args, results):
     print("|---|" + "---|" * len(presets))
     part_names = {"part_commit": "commit: the saved copy of the variables", "part_rest": "rest detector",
                   "part_gyro": "gyroscope stage (3 scalar updates)", "part_predict": "prediction stage",
-                  "part_accel": "accelerometer stage (3 scalar updates)",
+                  "part_accel": "accelerometer stage (2 scalar updates)",
                   "part_mag": "magnetometer stage (1 scalar update)",
                   "part_guard": "guard (floor, LDL^T) and finiteness check",
                   "step_other": "validation, report, calls (the step less its parts)"}

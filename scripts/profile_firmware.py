@@ -116,7 +116,7 @@ def main():
                     help="configured and built cross build directory (default build/cortex-m4f)")
     ap.add_argument("--samples", type=int, default=20,
                     help="benchmark samples (the first 10 align the filter; default 20)")
-    ap.add_argument("--root", default="att_step", help="function whose call tree is profiled")
+    ap.add_argument("--root", default="att_step_traced", help="function whose call tree is profiled (att_step is a tail call to it)")
     ap.add_argument("--require", default="att_stage_predict",
                     help="count only root calls that called this function (default: the "
                          "steps after the alignment, which run the prediction)")
