@@ -90,78 +90,16 @@ static void track_reference(att_vars_t *v, const att_settings_t *s, ekf_scalar_t
     }
 }
 
-ekf_status_t att_stage_mag(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t mag[3], ekf_scalar_t dt)
+/* The heading measurement's variance, rad^2 per sample of length dt (s). The heading comes
+ * from the field levelled with the estimated tilt, and a tilt error e moves it by about
+ * tan(dip) e. While linear acceleration disturbs the tilt (its running variance
+ * accel_dev_var, m/s^2 squared, is a tilt variance of accel_dev_var / g^2), the heading is
+ * trusted that much less (docs/derivation.md, "Magnetometer"). */
+static ekf_scalar_t heading_var(const att_vars_t *v, const att_settings_t *s, ekf_scalar_t dt)
 {
-    ekf_scalar_t lev[3], norm, heading, nu, r_var;
-    att_trig_t t;
-    ekf_status_t st;
-    ekf_innov_t info;
-
-    v->flags &= ~(ATT_FLAG_MAG_DISTURBED | ATT_FLAG_HEADING_HELD | ATT_FLAG_MAG_GATED);
-    if ((v->flags & ATT_FLAG_GIMBAL_LOCK) != 0u) {
-        /* heading is ill-defined next to theta = +-90 deg: hold it */
-        v->flags |= ATT_FLAG_HEADING_HELD;
-        ekf_count(&v->diag.mag_skipped);
-        return EKF_SKIPPED;
-    }
-    norm = att_norm3(mag);
-    att_sensor_trig(v, &t);
-    {
-        ekf_scalar_t m[3];
-        att_sensor_to_interval_end(v, mag, dt, m);
-        att_gen_mag_level(&t, m, lev);
-    }
-    if (!(ekf_sqrt(ekf_add(ekf_sq(lev[0]), ekf_sq(lev[1]))) > ekf_mul(EKF_C(1e-3), norm))) {
-        /* no horizontal component (or no field at all): no heading information */
-        v->flags |= ATT_FLAG_MAG_DISTURBED;
-        ekf_count(&v->diag.mag_skipped);
-        return EKF_SKIPPED;
-    }
-    heading = att_mag_heading(s, lev);
-    if (!(v->mag_ref_norm > EKF_C(0))) {
-        /* aligned without a magnetometer: the first field sample sets the reference and
-         * the heading */
-        att_mag_set_reference(v, norm, att_mag_dip(lev));
-        reset_heading(v, s, heading, ekf_min(ekf_sq(s->init_heading_sigma), s->heading_var_max));
-        v->flags &= ~ATT_FLAG_HEADING_LIMITED;
-        ekf_count(&v->diag.mag_fused);
-        return EKF_OK;
-    }
-    track_reference(v, s, norm, att_mag_dip(lev), dt);
-    v->diag.mag_norm_error = ekf_sub(ekf_div(norm, v->mag_ref_norm), EKF_C(1));
-    v->diag.mag_dip_error = ekf_sub(att_mag_dip(lev), v->mag_ref_dip);
-    if (ekf_abs(v->diag.mag_norm_error) > s->mag_norm_tol || ekf_abs(v->diag.mag_dip_error) > s->mag_dip_tol) {
-        v->flags |= ATT_FLAG_MAG_DISTURBED;
-        ekf_count(&v->diag.mag_skipped);
-        /* the reset below needs mag_reset_time of gating an undisturbed field: a body-fixed
-         * offset can pass the tests for a moment in a turn */
-        v->gated_time[ATT_SENSOR_MAG] = EKF_C(0);
-        return EKF_SKIPPED;
-    }
-    nu = ekf_wrap_pi(ekf_sub(heading, v->x[ATT_PSI]));
-    if (s->mag_reset_time > EKF_C(0) && v->gated_time[ATT_SENSOR_MAG] > s->mag_reset_time && v->tilt_ok) {
-        /* An undisturbed field (norm and dip as referenced) has disagreed with the heading
-         * beyond the gate for mag_reset_time: the heading is what is wrong (lost during
-         * gyro saturation, or tilted by sustained acceleration). Take the magnetic heading
-         * with the initial uncertainty. Only with a tilt the accelerometer confirms: the
-         * field is levelled with it, and a tilt still wrong after sustained acceleration
-         * gives a heading wrong by up to 180 deg. A magnet fixed to the sensor can pass the
-         * norm and dip tests for seconds; with these conditions no reset fires on BROAD's
-         * attached-magnet trials (docs/derivation.md, "Magnetometer"). */
-        reset_heading(v, s, heading, ekf_min(ekf_sq(s->init_heading_sigma), s->heading_var_max));
-        ekf_count(&v->diag.heading_resets);
-        ekf_count(&v->diag.mag_fused);
-        att_sensor_gate_result(v, s, ATT_SENSOR_MAG, 0);
-        return EKF_OK;
-    }
-    /* The heading comes from the field levelled with the estimated tilt, and a tilt error
-     * e moves it by about tan(dip) e. While linear acceleration disturbs the tilt (its
-     * running variance accel_dev_var, m/s^2 squared, is a tilt variance of
-     * accel_dev_var / g^2), the heading is trusted that much less (docs/derivation.md,
-     * "Magnetometer"). */
-    r_var = ekf_div(ekf_mac(ekf_sq(s->mag_heading_noise), v->mag_tan2_dip,
-                            ekf_div(ekf_mul(v->accel_dev_var, s->accel_adapt_weight), ekf_sq(s->gravity))),
-                    dt);
+    ekf_scalar_t r_var = ekf_div(ekf_mac(ekf_sq(s->mag_heading_noise), v->mag_tan2_dip,
+                                         ekf_div(ekf_mul(v->accel_dev_var, s->accel_adapt_weight), ekf_sq(s->gravity))),
+                                 dt);
     if (s->mag_norm_band > EKF_C(0) && s->mag_dip_band > EKF_C(0)) {
         /* a field off its reference norm or dip is a disturbed one, and its heading errs with
          * it (an iron nearby, a magnet on the sensor): trusted less the further it is off */
@@ -169,22 +107,27 @@ ekf_status_t att_stage_mag(att_vars_t *v, const att_settings_t *s, const ekf_sca
         const ekf_scalar_t kd = ekf_div(v->diag.mag_dip_error, s->mag_dip_band);
         r_var = ekf_mul(r_var, ekf_add(EKF_C(1), ekf_add(ekf_sq(kn), ekf_sq(kd))));
     }
-    /* no gate bypass for the magnetometer (a magnet that passes the norm and dip tests would
-     * drag the heading): recovery is the reset above, after mag_reset_time */
-    {
-        static const ekf_scalar_t h3[3] = {EKF_C(0), EKF_C(0), EKF_C(1)};
-        const ekf_scalar_t var0 = att_cov_var(&v->cov, ATT_PSI);
-        const ekf_scalar_t pht[3] = {att_cov_get(&v->cov, ATT_PHI, ATT_PSI), att_cov_get(&v->cov, ATT_THETA, ATT_PSI),
-                                     var0};
-        st = att_cov_update_unit(&v->cov, v->x, ATT_PSI, nu, r_var, s->mag_gate, s->var_floor, &info);
-        if (st == EKF_OK) {
-            /* the field's errors depend on the orientation and disturbed fields pass the
-             * tests: taken at face value they would teach the vertical offset the field's
-             * errors (docs/derivation.md, "Gyroscope offset in motion"), hence mag_derate */
-            (void)att_bias_update(&v->bias, s->bias.motion >= 2u, h3, pht, nu, info.variance, s->bias.mag_derate, NULL,
-                                  &v->x[ATT_PHI]);
-            att_consider_heading(&v->consider, att_sensor_reduction(var0, att_cov_var(&v->cov, ATT_PSI)));
-        }
+    return r_var;
+}
+
+/* The heading's scalar update with innovation nu (rad) and variance r_var (rad^2), and what
+ * follows a fused one: the offset in motion and the considered heading error. No gate bypass
+ * for the magnetometer (a magnet that passes the norm and dip tests would drag the heading):
+ * recovery is the reset of att_stage_mag, after mag_reset_time. */
+static ekf_status_t fuse_heading(att_vars_t *v, const att_settings_t *s, ekf_scalar_t nu, ekf_scalar_t r_var)
+{
+    static const ekf_scalar_t h3[3] = {EKF_C(0), EKF_C(0), EKF_C(1)};
+    const ekf_scalar_t var0 = att_cov_var(&v->cov, ATT_PSI);
+    const ekf_scalar_t pht[3] = {att_cov_get(&v->cov, ATT_PHI, ATT_PSI), att_cov_get(&v->cov, ATT_THETA, ATT_PSI), var0};
+    ekf_innov_t info;
+    const ekf_status_t st = att_cov_update_unit(&v->cov, v->x, ATT_PSI, nu, r_var, s->mag_gate, s->var_floor, &info);
+    if (st == EKF_OK) {
+        /* the field's errors depend on the orientation and disturbed fields pass the
+         * tests: taken at face value they would teach the vertical offset the field's
+         * errors (docs/derivation.md, "Gyroscope offset in motion"), hence mag_derate */
+        (void)att_bias_update(&v->bias, s->bias.motion >= 2u, h3, pht, nu, info.variance, s->bias.mag_derate, NULL,
+                              &v->x[ATT_PHI]);
+        att_consider_heading(&v->consider, att_sensor_reduction(var0, att_cov_var(&v->cov, ATT_PSI)));
     }
     v->diag.mag_ratio = info.test_ratio;
     if (st == EKF_GATED) {
@@ -204,4 +147,71 @@ ekf_status_t att_stage_mag(att_vars_t *v, const att_settings_t *s, const ekf_sca
     /* the heading update moves the pitch too, through their correlation */
     att_update_gimbal_flag(v, s);
     return EKF_OK;
+}
+
+/* A field sample skipped (flag: why), counted. */
+static ekf_status_t skip_field(att_vars_t *v, uint32_t flag)
+{
+    v->flags |= flag;
+    ekf_count(&v->diag.mag_skipped);
+    return EKF_SKIPPED;
+}
+
+ekf_status_t att_stage_mag(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t mag[3], ekf_scalar_t dt)
+{
+    ekf_scalar_t lev[3], norm, heading, nu;
+    att_trig_t t;
+
+    v->flags &= ~(ATT_FLAG_MAG_DISTURBED | ATT_FLAG_HEADING_HELD | ATT_FLAG_MAG_GATED);
+    if ((v->flags & ATT_FLAG_GIMBAL_LOCK) != 0u) {
+        /* heading is ill-defined next to theta = +-90 deg: hold it */
+        return skip_field(v, ATT_FLAG_HEADING_HELD);
+    }
+    norm = att_norm3(mag);
+    att_sensor_trig(v, &t);
+    {
+        ekf_scalar_t m[3];
+        att_sensor_to_interval_end(v, mag, dt, m);
+        att_gen_mag_level(&t, m, lev);
+    }
+    if (!(ekf_sqrt(ekf_add(ekf_sq(lev[0]), ekf_sq(lev[1]))) > ekf_mul(EKF_C(1e-3), norm))) {
+        /* no horizontal component (or no field at all): no heading information */
+        return skip_field(v, ATT_FLAG_MAG_DISTURBED);
+    }
+    heading = att_mag_heading(s, lev);
+    if (!(v->mag_ref_norm > EKF_C(0))) {
+        /* aligned without a magnetometer: the first field sample sets the reference and
+         * the heading */
+        att_mag_set_reference(v, norm, att_mag_dip(lev));
+        reset_heading(v, s, heading, ekf_min(ekf_sq(s->init_heading_sigma), s->heading_var_max));
+        v->flags &= ~ATT_FLAG_HEADING_LIMITED;
+        ekf_count(&v->diag.mag_fused);
+        return EKF_OK;
+    }
+    track_reference(v, s, norm, att_mag_dip(lev), dt);
+    v->diag.mag_norm_error = ekf_sub(ekf_div(norm, v->mag_ref_norm), EKF_C(1));
+    v->diag.mag_dip_error = ekf_sub(att_mag_dip(lev), v->mag_ref_dip);
+    if (ekf_abs(v->diag.mag_norm_error) > s->mag_norm_tol || ekf_abs(v->diag.mag_dip_error) > s->mag_dip_tol) {
+        /* the reset below needs mag_reset_time of gating an undisturbed field: a body-fixed
+         * offset can pass the tests for a moment in a turn */
+        v->gated_time[ATT_SENSOR_MAG] = EKF_C(0);
+        return skip_field(v, ATT_FLAG_MAG_DISTURBED);
+    }
+    nu = ekf_wrap_pi(ekf_sub(heading, v->x[ATT_PSI]));
+    if (s->mag_reset_time > EKF_C(0) && v->gated_time[ATT_SENSOR_MAG] > s->mag_reset_time && v->tilt_ok) {
+        /* An undisturbed field (norm and dip as referenced) has disagreed with the heading
+         * beyond the gate for mag_reset_time: the heading is what is wrong (lost during
+         * gyro saturation, or tilted by sustained acceleration). Take the magnetic heading
+         * with the initial uncertainty. Only with a tilt the accelerometer confirms: the
+         * field is levelled with it, and a tilt still wrong after sustained acceleration
+         * gives a heading wrong by up to 180 deg. A magnet fixed to the sensor can pass the
+         * norm and dip tests for seconds; with these conditions no reset fires on BROAD's
+         * attached-magnet trials (docs/derivation.md, "Magnetometer"). */
+        reset_heading(v, s, heading, ekf_min(ekf_sq(s->init_heading_sigma), s->heading_var_max));
+        ekf_count(&v->diag.heading_resets);
+        ekf_count(&v->diag.mag_fused);
+        att_sensor_gate_result(v, s, ATT_SENSOR_MAG, 0);
+        return EKF_OK;
+    }
+    return fuse_heading(v, s, nu, heading_var(v, s, dt));
 }

@@ -95,31 +95,17 @@ static void full_jacobian(const ekf_scalar_t d1[ATT_GEN_F1_NNZ], const ekf_scala
     }
 }
 
-ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scalar_t dt, att_trace_t *trace)
+/* P <- F P F^T + Q over the interval dt (s), with the transition factors d1, d2 of the
+ * motion mo; the offset filter and the considered errors advance with it. Q = G
+ * diag(rate_walk^2 dt) G^T (with the propagation; refused if the Jacobian is not finite) +
+ * angle random walk + the discrete kinematics' own error: independent, euler_rate_rel of the
+ * variance of each angle's increment and of each Euler rate (docs/derivation.md,
+ * "Conditioning"). Reads the state before the prediction (v->x). */
+static ekf_status_t propagate_covariance(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t d1[ATT_GEN_F1_NNZ],
+                                         const ekf_scalar_t d2[ATT_GEN_F2_NNZ], const att_motion_t *mo, ekf_scalar_t dt)
 {
-    ekf_scalar_t xn[ATT_N];
-    ekf_scalar_t d1[ATT_GEN_F1_NNZ], d2[ATT_GEN_F2_NNZ];
     ekf_scalar_t inc_var[3];
-    att_motion_t mo;
     int i;
-
-    att_model_transition(v->x, NULL, dt, s->gimbal_limit, xn, &mo);
-    if (!att_state_finite(xn)) {
-        return EKF_ERR_NUMERIC;
-    }
-    /* F = F2 F1 (docs/derivation.md, "State Jacobian") */
-    att_gen_transition_factors(&mo.t0, &mo.t, v->x, mo.rot, mo.jd, d1, d2);
-    if (trace != NULL) {
-        for (i = 0; i < ATT_N; ++i) {
-            trace->x_pre[i] = v->x[i];
-        }
-        att_cov_to_full(&v->cov, trace->P_pre);
-        full_jacobian(d1, d2, trace->F);
-    }
-    /* F P F^T + Q, Q = G diag(rate_walk^2 dt) G^T (with the propagation; refused if the
-     * Jacobian is not finite) + angle random walk + the discrete kinematics' own error:
-     * independent, euler_rate_rel of the variance of each angle's increment and of each
-     * Euler rate (docs/derivation.md, "Conditioning") */
     {
         const ekf_scalar_t q = ekf_mul(ekf_sq(s->rate_walk), dt), var[3] = {q, q, q};
         if (att_cov_predict(&v->cov, d1, d2, var, inc_var) != EKF_OK) {
@@ -131,12 +117,21 @@ ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scala
         att_cov_add_var(&v->cov, ATT_PHI + i, ekf_mul(s->euler_rate_rel, inc_var[i]));
     }
     att_cov_scale_diag(&v->cov, ATT_PHID, 3, s->euler_rate_rel);
-    gap_noise(v, s, &mo, dt);
+    gap_noise(v, s, mo, dt);
     att_bias_predict(&v->bias, &s->bias, d1, dt);
     att_consider_predict(&v->consider,
                          ekf_add(ekf_add(ekf_sq(v->x[ATT_P]), ekf_sq(v->x[ATT_Q])), ekf_sq(v->x[ATT_R])),
-                         s->angle_walk_rate, ekf_sq(mo.t.secth), dt);
+                         s->angle_walk_rate, ekf_sq(mo->t.secth), dt);
+    return EKF_OK;
+}
 
+/* The predicted state xn (motion mo over dt, s) becomes the state, with what depends on it:
+ * the trigonometry kept for the next stage, the low-pass turned with the body, the remap and
+ * gimbal flags, the variance limits and the heading-limited flag, the gates' clocks. */
+static void adopt_prediction(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t xn[ATT_N],
+                             const att_motion_t *mo, ekf_scalar_t dt)
+{
+    int i;
     for (i = 0; i < ATT_N; ++i) {
         v->x[i] = xn[i];
     }
@@ -144,17 +139,17 @@ ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scala
     if (!(ekf_abs(xn[ATT_THETA]) > s->gimbal_limit)) {
         /* the new angles' trigonometry, unclamped here: the measurement stage that follows
          * takes it instead of computing it again (att_sensor_trig) */
-        v->trig = mo.t;
+        v->trig = mo->t;
         v->trig_at[0] = xn[ATT_PHI];
         v->trig_at[1] = xn[ATT_THETA];
     }
     if (s->accel_lpf_tau > EKF_C(0)) {
-        att_lowpass_turn(v, s, mo.rot);
+        att_lowpass_turn(v, s, mo->rot);
     }
     /* the composed rotation's angles are in range already; passing over the top shows as a
      * half turn of roll and heading (the Jacobian was taken at the new angles) */
     v->flags &= ~ATT_FLAG_REMAPPED;
-    if (mo.remapped) {
+    if (mo->remapped) {
         v->flags |= ATT_FLAG_REMAPPED;
         ekf_count(&v->diag.remaps);
     }
@@ -176,6 +171,32 @@ ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scala
             v->gated_time[i] = ekf_add(v->gated_time[i], dt);
         }
     }
+}
+
+ekf_status_t att_stage_predict(att_vars_t *v, const att_settings_t *s, ekf_scalar_t dt, att_trace_t *trace)
+{
+    ekf_scalar_t xn[ATT_N];
+    ekf_scalar_t d1[ATT_GEN_F1_NNZ], d2[ATT_GEN_F2_NNZ];
+    att_motion_t mo;
+    int i;
+
+    att_model_transition(v->x, NULL, dt, s->gimbal_limit, xn, &mo);
+    if (!att_state_finite(xn)) {
+        return EKF_ERR_NUMERIC;
+    }
+    /* F = F2 F1 (docs/derivation.md, "State Jacobian") */
+    att_gen_transition_factors(&mo.t0, &mo.t, v->x, mo.rot, mo.jd, d1, d2);
+    if (trace != NULL) {
+        for (i = 0; i < ATT_N; ++i) {
+            trace->x_pre[i] = v->x[i];
+        }
+        att_cov_to_full(&v->cov, trace->P_pre);
+        full_jacobian(d1, d2, trace->F);
+    }
+    if (propagate_covariance(v, s, d1, d2, &mo, dt) != EKF_OK) {
+        return EKF_ERR_NUMERIC;
+    }
+    adopt_prediction(v, s, xn, &mo, dt);
     if (trace != NULL) {
         for (i = 0; i < ATT_N; ++i) {
             trace->x_pred[i] = v->x[i];
