@@ -1,0 +1,275 @@
+/*
+ * test_att_properties.c - properties of the estimator that follow from its mathematics
+ * (docs/derivation.md), each checked against a computation of its own here in double:
+ *
+ *   - the accelerometer stage's two scalar updates in the tangent plane, the second
+ *     relinearised about the prior, equal the batch EKF update of the two components
+ *     ("Accelerometer": noise isotropic across the components);
+ *   - the pitch remap (phi, theta, psi) -> (phi + pi, pi - theta, psi + pi) is the same
+ *     rotation, and the angle errors map as (d phi, -d theta, d psi): the reported angle
+ *     covariance, the offset's share included, transforms with J = diag(1, -1, 1).
+ *
+ * Built for float, double and fixed point. Found missing by scripts/mutate.py
+ * (docs/reliability.md, "Mutation testing").
+ */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "att.h"
+#include "att_state.h"
+#include "testsim.h"
+#include "unity.h"
+
+#define DEG (3.14159265358979323846 / 180.0)
+
+/* The filter's update against the batch update computed here, relative to the update's own
+ * size: about three times the rounding measured in each build (docs/reliability.md,
+ * "Mutation testing"). */
+#if defined(EKF_SCALAR_FLOAT)
+#define REL_TOL 4e-6
+#elif defined(EKF_SCALAR_DOUBLE)
+#define REL_TOL 1.5e-14
+#else
+#define REL_TOL 2e-8
+#endif
+
+void setUp(void) {}
+void tearDown(void) {}
+
+/* A slowly varying rotation (rad/s at time t, s). */
+static void wander(double t, double w[3])
+{
+    w[0] = 0.5 * sin(0.31 * t);
+    w[1] = 0.4 * cos(0.23 * t);
+    w[2] = 0.6 * sin(0.17 * t + 1.0);
+}
+
+/* A filter after `seconds` of wandering motion at 100 Hz, with every sensor, or (gyro_only)
+ * with the gyroscope alone once aligned. */
+static void run_motion(att_ekf_t *f, const att_settings_t *s, double seconds, int gyro_only, ts_sim_t *sim)
+{
+    ts_sim_cfg_t cfg;
+    att_sample_t smp;
+    double w[3];
+    int k;
+    ts_sim_default(&cfg);
+    cfg.gyro_bias[0] = 0.3 * DEG;
+    cfg.gyro_bias[2] = -0.2 * DEG;
+    ts_sim_init(sim, &cfg, 21, 0.3, -0.2, 0.7);
+    TEST_ASSERT_EQUAL_INT(EKF_OK, att_init(f, s));
+    for (k = 0; k < (int)(seconds / cfg.dt); ++k) {
+        wander(k * cfg.dt, w);
+        ts_sim_step(sim, w, NULL, &smp);
+        if (gyro_only && (att_flags(f) & ATT_FLAG_ALIGNED) != 0u) {
+            smp.valid = ATT_HAS_GYRO;
+        }
+        TEST_ASSERT_FALSE(ekf_status_is_error(att_step(f, &smp, NULL)));
+    }
+}
+
+static void cross3(const double a[3], const double b[3], double out[3])
+{
+    out[0] = a[1] * b[2] - a[2] * b[1];
+    out[1] = a[2] * b[0] - a[0] * b[2];
+    out[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+/* The batch update of the accelerometer's two tangent-plane components at the prior (x, P):
+ * the sample turned to the end of its interval by the rate state (second order, "Sample
+ * timing"), its direction e, z = (u_phi . e, u_theta . e) with u_phi = (0, c_phi, -s_phi),
+ * u_theta = (-c_th, -s_phi s_th, -c_phi s_th), H = [c_th e_phi; e_theta], R = r I. */
+static void batch_accel_update(const double x0[ATT_N], const double P0[ATT_N * ATT_N], const double a_in[3], double dt,
+                               double r, double x[ATT_N], double P[ATT_N * ATT_N], double z[2])
+{
+    const double sp = sin(x0[ATT_PHI]), cp = cos(x0[ATT_PHI]), st = sin(x0[ATT_THETA]), ct = cos(x0[ATT_THETA]);
+    const double u[2][3] = {{0.0, cp, -sp}, {-ct, -sp * st, -cp * st}};
+    double th[3], c1[3], c2[3], a[3], n, PH[ATT_N][2], S[2][2], Si[2][2], det, K[ATT_N][2];
+    int i, j;
+    for (i = 0; i < 3; ++i) {
+        th[i] = x0[ATT_P + i] * 0.5 * dt;
+    }
+    cross3(th, a_in, c1);
+    cross3(th, c1, c2);
+    for (i = 0; i < 3; ++i) {
+        a[i] = a_in[i] - c1[i] + 0.5 * c2[i];
+    }
+    n = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+    for (i = 0; i < 2; ++i) {
+        z[i] = (u[i][0] * a[0] + u[i][1] * a[1] + u[i][2] * a[2]) / n;
+    }
+    for (i = 0; i < ATT_N; ++i) { /* P H^T */
+        PH[i][0] = P0[i * ATT_N + ATT_PHI] * ct;
+        PH[i][1] = P0[i * ATT_N + ATT_THETA];
+    }
+    S[0][0] = ct * PH[ATT_PHI][0] + r;
+    S[0][1] = ct * PH[ATT_PHI][1];
+    S[1][0] = PH[ATT_THETA][0];
+    S[1][1] = PH[ATT_THETA][1] + r;
+    det = S[0][0] * S[1][1] - S[0][1] * S[1][0];
+    Si[0][0] = S[1][1] / det;
+    Si[1][1] = S[0][0] / det;
+    Si[0][1] = -S[0][1] / det;
+    Si[1][0] = -S[1][0] / det;
+    for (i = 0; i < ATT_N; ++i) {
+        K[i][0] = PH[i][0] * Si[0][0] + PH[i][1] * Si[1][0];
+        K[i][1] = PH[i][0] * Si[0][1] + PH[i][1] * Si[1][1];
+        x[i] = x0[i] + K[i][0] * z[0] + K[i][1] * z[1];
+    }
+    for (i = 0; i < ATT_N; ++i) { /* P - K (P H^T)^T */
+        for (j = 0; j < ATT_N; ++j) {
+            P[i * ATT_N + j] = P0[i * ATT_N + j] - K[i][0] * PH[j][0] - K[i][1] * PH[j][1];
+        }
+    }
+}
+
+/* The same as two scalar updates, the second's innovation relinearised about the prior with
+ * the first's correction (relin = 1) or not (relin = 0). */
+static void sequential_accel_update(const double x0[ATT_N], const double P0[ATT_N * ATT_N], const double z[2], double ct,
+                                    double r, int relin, double x[ATT_N], double P[ATT_N * ATT_N])
+{
+    static const int col[2] = {ATT_PHI, ATT_THETA};
+    const double h[2] = {ct, 1.0};
+    double b[ATT_N], nu, S;
+    int c, i, j;
+    memcpy(x, x0, sizeof(double) * ATT_N);
+    memcpy(P, P0, sizeof(double) * ATT_N * ATT_N);
+    for (c = 0; c < 2; ++c) {
+        for (i = 0; i < ATT_N; ++i) {
+            b[i] = P[i * ATT_N + col[c]] * h[c];
+        }
+        S = h[c] * b[col[c]] + r;
+        nu = z[c] - (relin ? h[c] * (x[col[c]] - x0[col[c]]) : 0.0);
+        for (i = 0; i < ATT_N; ++i) {
+            x[i] += b[i] / S * nu;
+        }
+        for (i = 0; i < ATT_N; ++i) {
+            for (j = 0; j < ATT_N; ++j) {
+                P[i * ATT_N + j] -= b[i] * b[j] / S;
+            }
+        }
+    }
+}
+
+static double max_diff(const double *a, const double *b, int n)
+{
+    double m = 0.0;
+    int i;
+    for (i = 0; i < n; ++i) {
+        m = fmax(m, fabs(a[i] - b[i]));
+    }
+    return m;
+}
+
+static void test_accel_stage_is_the_batch_update(void)
+{
+    /* the stage without what is not the update: no low-pass, no adaptive noise, no offset
+     * learning (it moves the angles too), no rest detection, no gate */
+    att_settings_t s = att_default_settings;
+    static att_ekf_t f;
+    ts_sim_t sim;
+    ekf_scalar_t Ps[ATT_N * ATT_N], a[3];
+    double x0[ATT_N], P0[ATT_N * ATT_N], xb[ATT_N], Pb[ATT_N * ATT_N], a_d[3], R[9], up[3] = {0.0, 0.0, 0.0};
+    double xs[ATT_N], Pseq[ATT_N * ATT_N], xf[ATT_N], Pf[ATT_N * ATT_N], z[2];
+    double dx_max, dP_max, ex, eP, corr, r, wrong;
+    const double dt = 0.01, g = 9.81;
+    int i;
+    s.accel_lpf_tau = EKF_C(0);
+    s.accel_adapt_tau = EKF_C(0);
+    s.bias.motion = 0u;
+    s.rest.bias_tau = EKF_C(0);
+    s.accel_gate = EKF_C(0);
+    /* a tilt uncertainty the update can reduce (its variance well above the sample's) and
+     * roll and pitch errors the rotation has correlated: seconds of gyroscope alone after the
+     * alignment */
+    s.init_tilt_sigma = EKF_C(0.2);
+    run_motion(&f, &s, 4.0, 1, &sim);
+    att_get_covariance(&f, Ps);
+    for (i = 0; i < ATT_N * ATT_N; ++i) {
+        P0[i] = ekf_to_double(Ps[i]);
+    }
+    for (i = 0; i < ATT_N; ++i) {
+        x0[i] = ekf_to_double(att_state(&f)[i]);
+    }
+    /* the roll-pitch correlation that makes the relinearisation matter (and the test able
+     * to see it) */
+    corr = P0[ATT_PHI * ATT_N + ATT_THETA] / sqrt(P0[ATT_PHI * ATT_N + ATT_PHI] * P0[ATT_THETA * ATT_N + ATT_THETA]);
+    /* a sample of gravity seen 2 deg off in roll and 3 deg off in pitch from the estimate */
+    ts_euler_to_R(x0[ATT_PHI] + 2.0 * DEG, x0[ATT_THETA] - 3.0 * DEG, x0[ATT_PSI], R);
+    up[2] = g;
+    for (i = 0; i < 3; ++i) { /* R^T (0, 0, g): the body's reading of gravity */
+        a_d[i] = R[3 * 2 + i] * up[2];
+        a[i] = ekf_from_double(a_d[i]);
+        a_d[i] = ekf_to_double(a[i]);
+    }
+    TEST_ASSERT_EQUAL_INT(EKF_OK, att_update_accel(&f, a, ekf_from_double(dt)));
+    r = ekf_to_double(ekf_div(ekf_sq(s.accel_noise), ekf_from_double(dt))) / (g * g);
+    batch_accel_update(x0, P0, a_d, dt, r, xb, Pb, z);
+    att_get_covariance(&f, Ps);
+    for (i = 0; i < ATT_N * ATT_N; ++i) {
+        Pf[i] = ekf_to_double(Ps[i]);
+    }
+    for (i = 0; i < ATT_N; ++i) {
+        xf[i] = ekf_to_double(att_state(&f)[i]);
+    }
+    dx_max = max_diff(xb, x0, ATT_N);
+    dP_max = max_diff(Pb, P0, ATT_N * ATT_N);
+    ex = max_diff(xf, xb, ATT_N);
+    eP = max_diff(Pf, Pb, ATT_N * ATT_N);
+    /* this test's own maths: two scalar updates, the second relinearised, are the batch
+     * update; without the relinearisation they are not, by far more than the tolerance */
+    sequential_accel_update(x0, P0, z, cos(x0[ATT_THETA]), r, 1, xs, Pseq);
+    TEST_ASSERT_TRUE(max_diff(xs, xb, ATT_N) <= 1e-12 && max_diff(Pseq, Pb, ATT_N * ATT_N) <= 1e-12);
+    sequential_accel_update(x0, P0, z, cos(x0[ATT_THETA]), r, 0, xs, Pseq);
+    wrong = max_diff(xs, xb, ATT_N);
+    printf("accelerometer stage vs batch update (%s): roll-pitch correlation %.3f; state change %.3g, differs by "
+           "%.3g (without relinearisation: %.3g); covariance change %.3g, differs by %.3g\n",
+           EKF_SCALAR_NAME, corr, dx_max, ex, wrong, dP_max, eP);
+    TEST_ASSERT_TRUE(dx_max > 1.0 * DEG); /* a real correction */
+    TEST_ASSERT_TRUE(wrong > 100.0 * REL_TOL * dx_max);
+    TEST_ASSERT_TRUE(ex <= REL_TOL * dx_max);
+    TEST_ASSERT_TRUE(eP <= REL_TOL * dP_max);
+}
+
+static void test_remap_transforms_the_reported_covariance(void)
+{
+    att_settings_t s = att_default_settings;
+    static att_ekf_t f;
+    ts_sim_t sim;
+    ekf_scalar_t before[6], after[6], v_max = EKF_C(0);
+    /* (phi theta), (theta psi) change sign with d theta; the rest keep theirs */
+    static const double sign[6] = {1.0, 1.0, 1.0, -1.0, 1.0, -1.0};
+    double worst = 0.0, scale = 0.0;
+    int i;
+    s.bias.motion = 2u;
+    s.rest.bias_tau = EKF_C(0);
+    run_motion(&f, &s, 60.0, 0, &sim);
+    for (i = 0; i < 9; ++i) {
+        v_max = ekf_max(v_max, ekf_abs(f.vars.bias.V[i]));
+    }
+    TEST_ASSERT_TRUE(ekf_to_double(v_max) > 0.1); /* the offset's share is in the covariance */
+    /* the same rotation written beyond the top: theta -> pi - theta, phi and psi + pi */
+    f.vars.x[ATT_THETA] = ekf_sub(EKF_PI, f.vars.x[ATT_THETA]);
+    f.vars.x[ATT_PHI] = ekf_wrap_pi(ekf_add(f.vars.x[ATT_PHI], EKF_PI));
+    f.vars.x[ATT_PSI] = ekf_wrap_pi(ekf_add(f.vars.x[ATT_PSI], EKF_PI));
+    f.vars.x[ATT_THETAD] = ekf_neg(f.vars.x[ATT_THETAD]);
+    att_get_angle_covariance(&f, before);
+    TEST_ASSERT_EQUAL_INT(1, att_normalise(&f.vars));
+    att_get_angle_covariance(&f, after);
+    for (i = 0; i < 6; ++i) {
+        scale = fmax(scale, fabs(ekf_to_double(before[i])));
+        worst = fmax(worst, fabs(ekf_to_double(after[i]) - sign[i] * ekf_to_double(before[i])));
+    }
+    printf("reported angle covariance through the pitch remap (%s): largest entry %.3g, off J c J by %.3g\n",
+           EKF_SCALAR_NAME, scale, worst);
+    TEST_ASSERT_TRUE(fabs(ekf_to_double(before[5])) > 1e-3 * scale); /* the sign change is visible */
+    TEST_ASSERT_TRUE(worst <= 1e-6 * scale);
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_accel_stage_is_the_batch_update);
+    RUN_TEST(test_remap_transforms_the_reported_covariance);
+    return UNITY_END();
+}
