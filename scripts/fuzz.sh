@@ -8,8 +8,8 @@
 #   ./scripts/fuzz.sh --seed 0         random mutation seed (default 1: the suite's run is
 #                                      repeatable; a finding reproduces with the same seed)
 #
-# Targets: fuzz_att_f, fuzz_att_d, fuzz_att_x (estimator: float, double, fixed point), fuzz_hal_can (CAN protocol +
-# node), fuzz_socketcan (SocketCAN receive path), fuzz_candump (the node's candump log lines),
+# Targets: fuzz_att_f, fuzz_att_d, fuzz_att_x (estimator: float, double, fixed point), fuzz_can (the node's CAN
+# protocols, DBC and DroneCAN, + the node), fuzz_socketcan (SocketCAN receive path), fuzz_candump (the node's candump log lines),
 # fuzz_parsers (Python file parsers, atheris).
 # Default: all but fuzz_att_d. --jobs: libFuzzer worker processes per target (default 1).
 # Each target starts from its committed seeds (tests/fuzz/corpus/<target>) plus what earlier
@@ -22,7 +22,7 @@ set -uo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
 TIME=60
-TARGETS="fuzz_att_f fuzz_att_x fuzz_hal_can fuzz_socketcan fuzz_candump fuzz_parsers"
+TARGETS="fuzz_att_f fuzz_att_x fuzz_can fuzz_socketcan fuzz_candump fuzz_parsers"
 WORKERS=1
 SEED=1
 while (($#)); do

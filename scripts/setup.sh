@@ -69,15 +69,17 @@ log "HIL: ${hil_kernel#vcan_run: }"
 # The interpreter is the machine's python3 (3.11 here); everything else is pinned.
 VENV="$ROOT/.venv"
 LOCK="$ROOT/host_tools/requirements.lock"
+LOCK_DRONECAN="$ROOT/host_tools/requirements-dronecan.lock"
 STAMP="$VENV/.attekf-lock.sha256"
 if [ ! -x "$VENV/bin/python" ]; then
   log "creating $VENV"
   python3 -m venv "$VENV"
 fi
-want="$(sha256sum "$LOCK" "$ROOT/host_tools/pyproject.toml" | sha256sum | cut -d' ' -f1)"
+want="$(sha256sum "$LOCK" "$LOCK_DRONECAN" "$ROOT/host_tools/pyproject.toml" | sha256sum | cut -d' ' -f1)"
 if [ ! -f "$STAMP" ] || [ "$(cat "$STAMP")" != "$want" ]; then
   log "installing pinned Python packages"
   "$VENV/bin/pip" install -q --disable-pip-version-check -r "$LOCK"
+  "$VENV/bin/pip" install -q --disable-pip-version-check --no-deps --require-hashes -r "$LOCK_DRONECAN"
   # Editable: Python from host_tools/, the C libraries from build/host (built below); the
   # build backend (scikit-build-core) comes pinned from the lock, hence no build isolation.
   "$VENV/bin/pip" install -q --disable-pip-version-check --no-deps --no-build-isolation -e "$ROOT/host_tools"

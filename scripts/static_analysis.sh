@@ -60,8 +60,8 @@ for f in firmware/target/*.c; do
 done
 if ((${#CROSS[@]})); then
   cppcheck "${CPPCHECK_OPTS[@]}" --std=c99 -DEKF_SCALAR_FLOAT=1 -D__arm__ -D__ARM_ARCH_7EM__ \
-           -Ifirmware/ekf -Ifirmware/att -Ifirmware/app -Ifirmware/target \
-           -Ihal/include -Ihal/can -Ihal/virtual "${CROSS[@]}" || status=1
+           -Ifirmware/ekf -Ifirmware/att -Ifirmware/app -Ifirmware/app/dbc -Ifirmware/app/dronecan -Ifirmware/target \
+           -Ihal/include -Ihal/virtual "${CROSS[@]}" || status=1
 fi
 log "cppcheck done in $((SECONDS - t0)) s"
 

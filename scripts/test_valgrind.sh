@@ -4,7 +4,10 @@
 #      disturbance, linear acceleration) with faults injected into the frame log: frames
 #      dropped, duplicated, swapped, wrong length, unknown ids, a 3 s pause of the bus
 #      (input stale, heartbeats);
-#   2. live mode on an interface that does not exist (open failure path, clean exit).
+#   2. the same replay with DroneCAN out (Solution, NodeStatus), and a DroneCAN session through
+#      the virtual backend: RawIMU in, every service asked (the dronecan package encodes them),
+#      the parameters saved to a file;
+#   3. live mode on an interface that does not exist (open failure path, clean exit).
 # Fails on any memcheck error or definite/indirect leak (--error-exitcode=99), on any other
 # exit status than the expected one (replay 0, live mode 1) and on a missing statistics file.
 # Without valgrind: fails under CI=true, else skipped (exit 77, scripts/prereq.sh).
@@ -62,6 +65,34 @@ status=0
 "${VG[@]}" "$NODE" --replay "$WORK/faulty.log" -o "$WORK/out.log" --stats "$WORK/stats.json" -l error
 rc=$?
 if [ $rc -ne 0 ]; then echo "[valgrind] replay: exit $rc" >&2; status=1; fi
+"${VG[@]}" "$NODE" --replay "$WORK/faulty.log" -o "$WORK/out_dc.log" --protocol dronecan --input dbc \
+  --stats "$WORK/stats_dc.json" -l error
+rc=$?
+if [ $rc -ne 0 ]; then echo "[valgrind] DroneCAN replay: exit $rc" >&2; status=1; fi
+"$PY" - "$ROOT" "$WORK/rec.csv" "$WORK/dronecan.log" <<'PYEOF' || { echo "[valgrind] DroneCAN session failed" >&2; exit 1; }
+import sys
+root, rec_csv, out = sys.argv[1:4]
+sys.path.insert(0, root + "/tests/python")
+import dcanutil, dronecan
+from attekf.io import read_recording
+rec = read_recording(rec_csv).slice(0, 600)
+frames = dcanutil.raw_imu_frames(rec.t, rec.gyr, rec.acc, rec.mag, 21)
+P = dronecan.uavcan.protocol.param
+reqs = [dronecan.uavcan.protocol.GetNodeInfo.Request(), P.GetSet.Request(name="gyro_noise"),
+        P.GetSet.Request(name="mag_declination", value=P.Value(real_value=0.1)),
+        P.GetSet.Request(name="accel_lpf_order", value=P.Value(integer_value=1)),
+        P.GetSet.Request(name="no.such"), P.GetSet.Request(index=3),
+        P.ExecuteOpcode.Request(opcode=0), dronecan.uavcan.protocol.RestartNode.Request(magic_number=0xACCE551B1E)]
+for k, r in enumerate(reqs):
+    frames += dcanutil.transfer_frames(r, 1.0 + 0.2 * k, 127, k, dest=100)
+dcanutil.write_candump(out, frames)
+PYEOF
+"${VG[@]}" "$NODE" --replay "$WORK/dronecan.log" -o "$WORK/out_session.log" --protocol dronecan --node-id 100 \
+  --params "$WORK/node.params" --stats "$WORK/stats_session.json" -l error
+rc=$?
+if [ $rc -ne 0 ] || ! grep -q "accel_lpf_order 1" "$WORK/node.params"; then
+  echo "[valgrind] DroneCAN session: exit $rc, or the parameters were not saved" >&2; status=1
+fi
 "${VG[@]}" "$NODE" --interface attekf-none0 --duration 1 -l error 2>"$WORK/live.err"
 rc=$?
 # the interface does not exist: the node must say so and exit 1 (99: a memcheck error)

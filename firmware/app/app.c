@@ -1,16 +1,20 @@
 /*
- * app.c - the estimator application loop (app.h). Target-independent: it talks only to the
- * HAL (hal.h) and the filter (att.h). Policies and their reasons: docs/can_protocol.md,
+ * app.c - the estimator application loop (app.h): configuration, start and restart, the
+ * poll that hands each input to its protocol, the counters. Target-independent: it talks only
+ * to the HAL (hal.h) and the filter (att.h). Policies and their reasons: docs/can_protocol.md,
  * "Node behaviour".
  */
-#include "app.h"
+#include "app_internal.h"
 
-#include <stddef.h>
 #include <string.h>
 
 /* A gap is predicted across in steps of at most the filter's dt_max; more steps than this
- * (max_gap_us / dt_max) is refused at app_init so one sample never costs unbounded time. */
+ * (max_gap_us / dt_max) is refused by the configuration check so that one sample never costs
+ * unbounded time. */
 #define APP_MAX_PREDICT_STEPS 1000u
+/* Inputs handled per poll at most, when none completes a sample (foreign traffic): the clock
+ * work of the poll (staleness, status) must not wait for a quiet bus. */
+#define APP_POLL_MAX_INPUTS 64u
 
 const app_settings_t app_default_settings = {
     .output_period_us = 10000u,
@@ -19,6 +23,33 @@ const app_settings_t app_default_settings = {
     .max_gap_us = 2000000u,
     .seq_window = 1000u,
 };
+
+const app_node_settings_t app_default_node = {
+    .protocol = APP_PROTO_DBC,
+    .input = APP_PROTO_DBC,
+    .node_id = 100u,
+    .imu_node = 0u,
+    .mag_node = 0u,
+    .dbc_base = 0x180u,
+    .dbc_imu_base = 0x100u,
+    .unique_id = {0},
+};
+
+#define APP_COUNTER_NAME(id, name, help) #name,
+static const char *const counter_names[APP_CNT_COUNT] = {APP_COUNTERS(APP_COUNTER_NAME)};
+#undef APP_COUNTER_NAME
+
+const char *app_counter_name(app_counter_id_t id)
+{
+    return ((unsigned)id < (unsigned)APP_CNT_COUNT) ? counter_names[id] : "unknown_counter";
+}
+
+void app_default_config(app_config_t *cfg)
+{
+    cfg->app = app_default_settings;
+    cfg->node = app_default_node;
+    cfg->att = att_default_settings;
+}
 
 ekf_status_t app_settings_check(const app_settings_t *s)
 {
@@ -32,346 +63,264 @@ ekf_status_t app_settings_check(const app_settings_t *s)
     return EKF_OK;
 }
 
-ekf_status_t app_init(app_t *app, const app_settings_t *settings, const att_settings_t *att,
-                      const hal_t *hal)
+ekf_status_t app_node_check(const app_node_settings_t *n)
 {
-    ekf_status_t st;
-    if (app == NULL || settings == NULL || att == NULL || !hal_valid(hal)) {
+    if (n == NULL) {
         return EKF_ERR_NULL;
     }
-    st = app_settings_check(settings);
-    if (st != EKF_OK) {
-        return st;
-    }
-    st = att_settings_check(att);
-    if (st != EKF_OK) {
-        return st;
-    }
-    /* dt_max is in s, max_gap in us: steps = max_gap * 1e-6 / dt_max. */
-    if ((ekf_scalar_t)settings->max_gap_us * EKF_C(1e-6) >
-        att->dt_max * (ekf_scalar_t)APP_MAX_PREDICT_STEPS) {
+    if (n->protocol > APP_PROTO_TEXT || n->input > APP_PROTO_DRONECAN || n->node_id < 1u || n->node_id > 127u ||
+        n->imu_node > 127u || n->mag_node > 127u || !dbc_bases_ok(n->dbc_base, n->dbc_imu_base)) {
         return EKF_ERR_SETTINGS;
     }
-    memset(app, 0, sizeof(*app));
-    st = att_init(&app->ekf, att);
-    if (st != EKF_OK) {
-        return st;
-    }
-    app->settings = *settings;
-    app->att_settings = *att;
-    app->hal = hal;
-    app->last_local_us = hal_now_us(hal);
-    hal_report(hal, HAL_LOG_INFO, HAL_EV_STARTED, 0);
     return EKF_OK;
 }
 
-static int32_t us_to_ms(uint64_t us)
+ekf_status_t app_config_check(const app_config_t *c)
 {
-    const uint64_t ms = us / 1000u;
-    return (ms > (uint64_t)INT32_MAX) ? INT32_MAX : (int32_t)ms;
+    ekf_status_t st;
+    if (c == NULL) {
+        return EKF_ERR_NULL;
+    }
+    st = app_settings_check(&c->app);
+    if (st == EKF_OK) {
+        st = app_node_check(&c->node);
+    }
+    if (st == EKF_OK) {
+        st = att_settings_check(&c->att);
+    }
+    /* dt_max is in s, max_gap in us: steps = max_gap * 1e-6 / dt_max. */
+    if (st == EKF_OK && (ekf_scalar_t)c->app.max_gap_us * EKF_C(1e-6) >
+                            c->att.dt_max * (ekf_scalar_t)APP_MAX_PREDICT_STEPS) {
+        st = EKF_ERR_SETTINGS;
+    }
+    return st;
 }
 
-/* Back to "not aligned", new sample clock. The filter's settings were validated at init. */
-static void restart_filter(app_t *a)
+void app_log(const app_t *a, hal_level_t level, const char *event, int32_t detail)
 {
-    (void)att_init(&a->ekf, &a->att_settings);
+    hal_log(a->hal, level, event, detail);
+}
+
+/* Everything but the HAL, the hooks and the counters back to the start. */
+static ekf_status_t start(app_t *a, const app_config_t *cfg)
+{
+    const ekf_status_t st = att_init(&a->ekf, &cfg->att);
+    uint64_t now;
+    if (st != EKF_OK) {
+        return st;
+    }
+    a->settings = cfg->app;
+    a->node = cfg->node;
+    a->n_pending = 0u;
+    a->restart_requested = 0u;
+    memset(&a->out, 0, sizeof(a->out));
+    memset(a->last_accel, 0, sizeof(a->last_accel));
     a->have_sample = 0u;
+    a->stale = 0u;
+    a->restart_n = 0u;
     a->was_aligned = 0u;
+    a->out_index = 0u;
+    dbc_rx_init(&a->dbc_rx, cfg->node.dbc_imu_base);
+    dbc_tx_init(&a->dbc_tx, cfg->node.dbc_base);
+    now = hal_now_us(a->hal);
+    a->last_local_us = now;
+    app_dcan_start(a, now);
+    return EKF_OK;
 }
 
-static void publish(app_t *a, hal_output_kind_t kind)
+ekf_status_t app_init(app_t *app, const app_config_t *cfg, const hal_t *hal)
 {
-    hal_output_t *o = &a->out;
-    const int aligned = (att_flags(&a->ekf) & ATT_FLAG_ALIGNED) != 0u;
-    hal_status_t st;
+    ekf_status_t st;
+    if (app == NULL || cfg == NULL || !hal_valid(hal)) {
+        return EKF_ERR_NULL;
+    }
+    st = app_config_check(cfg);
+    if (st != EKF_OK) {
+        return st;
+    }
+    memset(app, 0, sizeof(*app));
+    app->hal = hal;
+    st = start(app, cfg);
+    if (st == EKF_OK) {
+        app_log(app, HAL_LOG_INFO, "started", 0);
+    }
+    return st;
+}
+
+void app_set_hooks(app_t *app, const app_hooks_t *hooks)
+{
+    if (hooks != NULL) {
+        app->hooks = *hooks;
+    } else {
+        memset(&app->hooks, 0, sizeof(app->hooks));
+    }
+}
+
+void app_restart(app_t *app)
+{
+    app_config_t cfg;
+    app_current_config(app, &cfg);
+    /* every pending value passed the configuration check with the others when it was set */
+    if (start(app, &cfg) != EKF_OK) {
+        app_default_config(&cfg);
+        (void)start(app, &cfg);
+    }
+    app->latched |= APP_FLAG_RESTARTED;
+    app_log(app, HAL_LOG_WARN, "node_restart", 0);
+}
+
+void app_count_request(app_t *a, int ok)
+{
+    hal_count(&a->counters[APP_CNT_REQUESTS]);
+    if (!ok) {
+        hal_count(&a->counters[APP_CNT_REFUSED]);
+    }
+}
+
+const char *app_param_result_name(app_param_result_t r)
+{
+    switch (r) {
+    case APP_PARAM_OK: return "ok";
+    case APP_PARAM_PENDING: return "pending restart";
+    case APP_PARAM_NO_SUCH: return "no such parameter";
+    case APP_PARAM_RANGE: return "out of range";
+    }
+    return "?";
+}
+
+int app_save(app_t *a)
+{
+    app_config_t cfg;
+    if (a->hooks.save == NULL) {
+        return 0;
+    }
+    app_current_config(a, &cfg);
+    return a->hooks.save(a->hooks.user, &cfg);
+}
+
+int app_erase(app_t *a) { return a->hooks.erase != NULL && a->hooks.erase(a->hooks.user); }
+
+void app_get_counters(const app_t *app, uint32_t c[APP_CNT_COUNT])
+{
+    hal_link_stats_t s;
     int i;
-
-    if (kind == HAL_OUT_ATTITUDE) {
-        ekf_scalar_t e[3], w[3], var[ATT_N];
-        att_get_euler(&a->ekf, e);
-        att_get_body_rates(&a->ekf, w);
-        att_get_variances(&a->ekf, var);
-        for (i = 0; i < 3; ++i) {
-            o->euler[i] = aligned ? ekf_to_float(e[i]) : 0.0f;
-            o->rates[i] = aligned ? ekf_to_float(w[i]) : 0.0f;
-            o->sigma[i] = aligned ? ekf_to_float(ekf_sqrt(var[ATT_PHI + i])) : 0.0f;
-        }
-        hal_count(&a->counters[HAL_CNT_OUTPUTS]);
+    for (i = 0; i < APP_CNT_COUNT; ++i) {
+        c[i] = app->counters[i];
     }
-    o->att_flags = att_flags(&a->ekf);
-    o->flags = (uint16_t)(a->latched | (aligned ? HAL_FLAG_ALIGNED : 0u) |
-                          (a->stale ? HAL_FLAG_STALE : 0u) |
-                          (kind == HAL_OUT_HEARTBEAT ? HAL_FLAG_HEARTBEAT : 0u));
-    memset(o->counters, 0, sizeof(o->counters));
-    hal_get_counters(a->hal, o->counters);
-    hal_count_n(&o->counters[HAL_CNT_LATE], a->counters[HAL_CNT_LATE]); /* late samples */
-    for (i = HAL_CNT_LINK_END; i < HAL_CNT_COUNT; ++i) {
-        o->counters[i] = a->counters[i];
-    }
-    o->index = a->out_index++;
-    o->kind = (uint8_t)kind;
-    st = hal_publish(a->hal, o);
-    if (st == HAL_OK) {
-        a->latched = 0u;
-    } else {
-        /* Keep the events for the next output; the backend counted the failure. */
-        a->latched |= HAL_FLAG_LINK_ERROR;
-    }
+    hal_get_stats(app->hal, &s);
+    c[APP_CNT_RX_FRAMES] = s.rx_frames;
+    c[APP_CNT_RX_OVERFLOW] = s.rx_overflow;
+    c[APP_CNT_LINK_DOWN] = s.link_down;
+    c[APP_CNT_TX_FRAMES] = s.tx_frames;
+    c[APP_CNT_TX_ERRORS] = s.tx_errors;
+    c[APP_CNT_BAD_DLC] = app->dbc_rx.n.bad_dlc;
+    c[APP_CNT_DUPLICATE] = app->dbc_rx.n.duplicate;
+    hal_count_n(&c[APP_CNT_DUPLICATE], app->counters[APP_CNT_DUPLICATE]); /* DroneCAN's */
+    c[APP_CNT_LATE] = app->dbc_rx.n.late;
+    hal_count_n(&c[APP_CNT_LATE], app->counters[APP_CNT_LATE]);          /* late samples */
+    c[APP_CNT_INCOMPLETE] = app->dbc_rx.n.incomplete;
+    c[APP_CNT_DISCARDED] = app->dbc_rx.n.discarded;
+    hal_count_n(&c[APP_CNT_TRANSFER_ERRORS], app->dcan.rx.errors);
 }
 
-/* Frame-level trouble seen by the backend since the last sample becomes status flags. */
-static void latch_link_events(app_t *a, const uint32_t before[HAL_CNT_COUNT],
-                              const uint32_t after[HAL_CNT_COUNT])
+void app_latch_errors(app_t *a)
 {
-    if (after[HAL_CNT_UNKNOWN_ID] != before[HAL_CNT_UNKNOWN_ID] ||
-        after[HAL_CNT_BAD_DLC] != before[HAL_CNT_BAD_DLC] ||
-        after[HAL_CNT_DUPLICATE] != before[HAL_CNT_DUPLICATE] || after[HAL_CNT_LATE] != before[HAL_CNT_LATE]) {
-        a->latched |= HAL_FLAG_FRAME_ERROR;
+    uint32_t c[APP_CNT_COUNT];
+    uint32_t now[3];
+    app_get_counters(a, c);
+    /* sums wrap together with their parts: only a change matters */
+    now[0] = c[APP_CNT_BAD_DLC] + c[APP_CNT_DUPLICATE] + c[APP_CNT_LATE] + c[APP_CNT_TRANSFER_ERRORS];
+    now[1] = c[APP_CNT_INCOMPLETE] + c[APP_CNT_DISCARDED];
+    now[2] = c[APP_CNT_RX_OVERFLOW] + c[APP_CNT_LINK_DOWN] + c[APP_CNT_TX_ERRORS];
+    if (now[0] != a->errors_seen[0]) {
+        a->latched |= APP_FLAG_FRAME_ERROR;
     }
-    if (after[HAL_CNT_INCOMPLETE] != before[HAL_CNT_INCOMPLETE] ||
-        after[HAL_CNT_DISCARDED] != before[HAL_CNT_DISCARDED]) {
-        a->latched |= HAL_FLAG_INCOMPLETE;
+    if (now[1] != a->errors_seen[1]) {
+        a->latched |= APP_FLAG_INCOMPLETE;
     }
-    if (after[HAL_CNT_RX_OVERFLOW] != before[HAL_CNT_RX_OVERFLOW] ||
-        after[HAL_CNT_LINK_DOWN] != before[HAL_CNT_LINK_DOWN] ||
-        after[HAL_CNT_TX_ERRORS] != before[HAL_CNT_TX_ERRORS]) {
-        a->latched |= HAL_FLAG_LINK_ERROR;
+    if (now[2] != a->errors_seen[2]) {
+        a->latched |= APP_FLAG_LINK_ERROR;
     }
+    memcpy(a->errors_seen, now, sizeof(now));
 }
 
-/* A sample that does not continue the stream (dseq: its sequence step from the last accepted
- * sample). It is a stale or corrupted frame, or one of the first samples of a restarted
- * sender; only APP_RESTART_CONFIRM of them in a row that continue each other tell the two
- * apart. Returns 1 when this one completes such a run (the caller restarts on it); else
- * counts it, late if it is from the past (sequence outside the window, time not after the
- * last sample's), a time error otherwise, and returns 0: drop it. */
-static int confirms_restart(app_t *a, const hal_sample_t *s, uint16_t dseq)
+/* A frame to whichever protocol takes it; 1 if it completed a sample or a request. Each
+ * protocol counts the frames it does not know as foreign. */
+static int handle_frame(app_t *a, const hal_frame_t *f)
 {
-    const app_settings_t *cfg = &a->settings;
-    const uint16_t dc = (uint16_t)(s->seq - a->restart_seq);
-    if (a->restart_n > 0u && dc != 0u && dc <= cfg->seq_window && s->t_us > a->restart_t_us &&
-        s->t_us - a->restart_t_us <= cfg->max_gap_us) {
-        ++a->restart_n;
-    } else {
-        a->restart_n = 1u;
+    const int ext = (f->id & HAL_FRAME_EXT) != 0u;
+    if (ext && (a->node.protocol == APP_PROTO_DRONECAN || a->node.input == APP_PROTO_DRONECAN)) {
+        return app_dcan_frame(a, f);
     }
-    a->restart_seq = s->seq;
-    a->restart_t_us = s->t_us;
-    if (a->restart_n >= APP_RESTART_CONFIRM) {
-        return 1;
+    if (!ext && (a->node.protocol == APP_PROTO_DBC || a->node.input == APP_PROTO_DBC)) {
+        return app_dbc_frame(a, f);
     }
-    if (dseq != 0u && dseq > cfg->seq_window && s->t_us <= a->last_t_us) {
-        hal_count(&a->counters[HAL_CNT_LATE]);
-        a->latched |= HAL_FLAG_FRAME_ERROR;
-        hal_report(a->hal, HAL_LOG_WARN, HAL_EV_LATE, (int32_t)s->seq);
-    } else {
-        hal_count(&a->counters[HAL_CNT_TIME_ERRORS]);
-        a->latched |= HAL_FLAG_TIME_ERROR;
-        hal_report(a->hal, HAL_LOG_WARN, HAL_EV_TIME_ERROR, (int32_t)s->seq);
-    }
+    hal_count(&a->counters[APP_CNT_FOREIGN]);
     return 0;
 }
 
-static int is_rejection(ekf_status_t st)
+/* One input; 1 if the poll should end (a sample or a request was handled). */
+static int handle_input(app_t *a, const hal_input_t *in, int *got_sample)
 {
-    /* Gated / skipped are filter decisions, not bad input; "not initialised" is a sample
-     * without accelerometer while aligning (it waits for one). */
-    return st != EKF_OK && st != EKF_GATED && st != EKF_SKIPPED && st != EKF_ERR_NOT_INITIALISED;
-}
-
-static int bad_vector(ekf_status_t st) { return st == EKF_ERR_NOT_FINITE || st == EKF_ERR_RANGE; }
-
-/* Clears the presence bit of every sensor whose vector att_step refused (non-finite or
- * out of range). Returns 1 if a sensor was dropped and the sample is worth another call. */
-static int retry_without_bad_sensors(att_sample_t *in, const att_step_report_t *rep)
-{
-    const uint8_t before = in->valid;
-    if (bad_vector(rep->gyro)) {
-        in->valid = (uint8_t)(in->valid & ~(ATT_HAS_GYRO | ATT_GYRO_SATURATED));
+    const uint32_t before = a->counters[APP_CNT_SAMPLES];
+    int done = 0;
+    switch (in->kind) {
+    case HAL_IN_FRAME:
+        done = handle_frame(a, &in->u.frame);
+        break;
+    case HAL_IN_SAMPLE:
+        app_process_sample(a, &in->u.sample);
+        done = 1;
+        break;
+    case HAL_IN_LINE:
+        done = app_text_line(a, &in->u.line);
+        break;
+    default:
+        break;
     }
-    if (bad_vector(rep->accel)) {
-        in->valid = (uint8_t)(in->valid & ~ATT_HAS_ACCEL);
+    if (a->counters[APP_CNT_SAMPLES] != before) {
+        *got_sample = 1;
     }
-    if (bad_vector(rep->mag)) {
-        in->valid = (uint8_t)(in->valid & ~ATT_HAS_MAG);
-    }
-    return in->valid != before && !is_rejection(rep->predict);
-}
-
-static void process(app_t *a, const hal_sample_t *s)
-{
-    const hal_t *hal = a->hal;
-    const app_settings_t *cfg = &a->settings;
-    att_sample_t in;
-    att_step_report_t rep;
-    ekf_status_t st, refused;
-    uint64_t dt_us = 0u;
-    uint8_t use = (uint8_t)(s->valid & HAL_HAS_ALL);
-    int i;
-
-    hal_count(&a->counters[HAL_CNT_SAMPLES]);
-
-    if ((s->saturated & use) != 0u) {
-        /* A clamped value is wrong by an unknown amount: better not fused at all. A clamped
-         * gyro still says the rate is at least that large: the estimator is told
-         * (ATT_GYRO_SATURATED) and widens its rate uncertainty. */
-        hal_count(&a->counters[HAL_CNT_SATURATED]);
-        a->latched |= HAL_FLAG_IN_SATURATED;
-        hal_report(hal, HAL_LOG_DEBUG, HAL_EV_SATURATED, (int32_t)(s->saturated & use));
-        use = (uint8_t)(use & ~s->saturated);
-    }
-
-    if (a->have_sample) {
-        const uint16_t dseq = (uint16_t)(s->seq - a->last_seq);
-        if (dseq == 0u || dseq > cfg->seq_window || s->t_us <= a->last_t_us) {
-            if (!confirms_restart(a, s, dseq)) {
-                return; /* dropped; the next good sample sees it as a gap */
-            }
-            /* APP_RESTART_CONFIRM consistent samples: the sender restarted. Follow it. */
-            hal_count(&a->counters[HAL_CNT_RESYNC]);
-            a->latched |= HAL_FLAG_RESTARTED;
-            hal_report(hal, HAL_LOG_WARN, HAL_EV_RESYNC, (int32_t)s->seq);
-            restart_filter(a);
-        } else {
-            dt_us = s->t_us - a->last_t_us;
-            if (dseq > 1u) {
-                hal_count(&a->counters[HAL_CNT_GAPS]);
-                hal_count_n(&a->counters[HAL_CNT_MISSING], (uint32_t)(dseq - 1u));
-                a->latched |= HAL_FLAG_GAP;
-                hal_report(hal, HAL_LOG_INFO, HAL_EV_GAP, (int32_t)(dseq - 1u));
-            }
-            if (dt_us > cfg->max_gap_us) {
-                /* Too long to predict across usefully: start again from the sensors. */
-                hal_count(&a->counters[HAL_CNT_REALIGN]);
-                a->latched |= HAL_FLAG_RESTARTED;
-                hal_report(hal, HAL_LOG_WARN, HAL_EV_REALIGN, us_to_ms(dt_us));
-                restart_filter(a);
-            }
-        }
-    }
-    a->restart_n = 0u;
-    if (!a->have_sample) {
-        a->next_out_t_us = s->t_us; /* new sample clock: output at once */
-        dt_us = 0u;
-    }
-    a->have_sample = 1u;
-    a->last_seq = s->seq;
-    a->last_t_us = s->t_us;
-
-    memset(&in, 0, sizeof(in));
-    for (i = 0; i < 3; ++i) {
-        in.gyro[i] = ekf_from_float(s->gyro[i]);
-        in.accel[i] = ekf_from_float(s->accel[i]);
-        in.mag[i] = ekf_from_float(s->mag[i]);
-    }
-    in.valid = (uint8_t)(((use & HAL_HAS_GYRO) ? ATT_HAS_GYRO : 0u) |
-                         ((use & HAL_HAS_ACCEL) ? ATT_HAS_ACCEL : 0u) |
-                         ((use & HAL_HAS_MAG) ? ATT_HAS_MAG : 0u) |
-                         ((s->valid & s->saturated & HAL_HAS_GYRO) ? ATT_GYRO_SATURATED : 0u));
-    in.dt = (ekf_scalar_t)dt_us * EKF_C(1e-6);
-    refused = EKF_OK;
-    if ((att_flags(&a->ekf) & ATT_FLAG_ALIGNED) != 0u) {
-        /* Longer than one filter step allows (a gap): predict across it in pieces. A
-         * refused piece (numeric) ends the loop; the sample's own step then sees the
-         * rest of the gap. */
-        const ekf_scalar_t dt_max = a->att_settings.dt_max;
-        while (in.dt > dt_max) {
-            st = att_predict(&a->ekf, dt_max);
-            if (st != EKF_OK) {
-                refused = st;
-                break;
-            }
-            in.dt = ekf_sub(in.dt, dt_max);
-        }
-    }
-    st = att_step(&a->ekf, &in, &rep);
-    if (is_rejection(st) && retry_without_bad_sensors(&in, &rep)) {
-        /* att_step refuses a whole sample for one bad sensor vector: the rest of the
-         * sample is still worth fusing (the refusal is counted below) */
-        refused = st;
-        st = att_step(&a->ekf, &in, &rep);
-    }
-    if (is_rejection(st)) {
-        refused = st;
-    }
-    if (refused != EKF_OK) {
-        hal_count(&a->counters[HAL_CNT_EKF_REJECTED]);
-        a->latched |= HAL_FLAG_EKF_REJECT;
-        hal_report(hal, HAL_LOG_DEBUG, HAL_EV_EKF_REJECT, (int32_t)refused);
-    }
-    if (!a->was_aligned && (att_flags(&a->ekf) & ATT_FLAG_ALIGNED) != 0u) {
-        a->was_aligned = 1u;
-        hal_report(hal, HAL_LOG_INFO, HAL_EV_ALIGNED, (int32_t)s->seq);
-    }
-
-    a->out.t_us = s->t_us;
-    a->out.rx_us = s->rx_us;
-    a->out.seq = s->seq;
-    if (cfg->output_period_us == 0u || s->t_us >= a->next_out_t_us) {
-        if (cfg->output_period_us != 0u) {
-            /* Next multiple of the period after this sample (one output however many
-             * periods a gap skipped). */
-            const uint64_t k = (s->t_us - a->next_out_t_us) / cfg->output_period_us + 1u;
-            a->next_out_t_us += k * cfg->output_period_us;
-        }
-        publish(a, HAL_OUT_ATTITUDE);
-    }
+    return done;
 }
 
 hal_status_t app_poll(app_t *app, uint32_t timeout_us)
 {
-    hal_sample_t s;
-    hal_status_t st;
-    uint32_t before[HAL_CNT_COUNT], after[HAL_CNT_COUNT];
+    hal_input_t in;
+    hal_status_t first = HAL_EMPTY;
+    uint32_t k, wait = timeout_us;
+    int got_sample = 0;
     uint64_t now;
 
     if (app == NULL) {
         return HAL_ERR_ARG;
     }
-    memset(before, 0, sizeof(before));
-    memset(after, 0, sizeof(after));
-    hal_get_counters(app->hal, before);
-    st = hal_read_sample(app->hal, &s, timeout_us);
-    hal_get_counters(app->hal, after);
-    latch_link_events(app, before, after);
-    now = hal_now_us(app->hal);
-    if (st == HAL_OK) {
-        if (app->stale) {
-            app->stale = 0u;
-            hal_report(app->hal, HAL_LOG_INFO, HAL_EV_RESUMED,
-                       us_to_ms(now - app->last_local_us));
+    for (k = 0; k < APP_POLL_MAX_INPUTS; ++k) {
+        const hal_status_t st = hal_receive(app->hal, &in, wait);
+        if (k == 0u) {
+            first = st;
         }
+        if (st == HAL_END) {
+            app_dbc_end(app); /* what is still being assembled */
+        } else if (st == HAL_ERR_LINK_DOWN || st == HAL_ERR_IO) {
+            app->latched |= APP_FLAG_LINK_ERROR;
+        }
+        if (st != HAL_OK || handle_input(app, &in, &got_sample)) {
+            break;
+        }
+        wait = 0u;
+    }
+    now = hal_now_us(app->hal);
+    if (got_sample) {
         app->last_local_us = now;
-        process(app, &s);
-    } else if (st == HAL_ERR_LINK_DOWN || st == HAL_ERR_IO) {
-        app->latched |= HAL_FLAG_LINK_ERROR;
     }
-
-    if (!app->stale && now > app->last_local_us &&
-        now - app->last_local_us >= app->settings.stale_timeout_us) {
-        app->stale = 1u;
-        hal_count(&app->counters[HAL_CNT_STALE]);
-        hal_report(app->hal, HAL_LOG_WARN, HAL_EV_STALE, us_to_ms(now - app->last_local_us));
-        app->next_heartbeat_us = now;
+    app_tick(app, now);
+    if (app->restart_requested) {
+        app_restart(app);
     }
-    if (app->stale && now >= app->next_heartbeat_us) {
-        publish(app, HAL_OUT_HEARTBEAT);
-        app->next_heartbeat_us = now + app->settings.heartbeat_period_us;
-    }
-    return st;
-}
-
-void app_get_counters(const app_t *app, uint32_t counters[HAL_CNT_COUNT])
-{
-    int i;
-    memset(counters, 0, sizeof(uint32_t) * (size_t)HAL_CNT_COUNT);
-    hal_get_counters(app->hal, counters);
-    hal_count_n(&counters[HAL_CNT_LATE], app->counters[HAL_CNT_LATE]); /* late samples */
-    for (i = HAL_CNT_LINK_END; i < HAL_CNT_COUNT; ++i) {
-        counters[i] = app->counters[i];
-    }
+    return first;
 }
 
 const att_ekf_t *app_filter(const app_t *app) { return &app->ekf; }
 
-const hal_output_t *app_last_output(const app_t *app) { return &app->out; }
+const app_output_t *app_last_output(const app_t *app) { return &app->out; }

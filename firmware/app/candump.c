@@ -9,7 +9,7 @@
 #include <stdio.h>
 #include <string.h>
 
-#define EFF_FLAG 0x80000000u
+#define EFF_FLAG HAL_FRAME_EXT
 #define SEC_MAX 18446744073709ull /* UINT64_MAX / 10^6: a larger second has no 64-bit time */
 
 static int hexval(char c)
@@ -25,7 +25,7 @@ static int is_end(char c)
     return c == '\0' || c == '\n' || c == '\r';
 }
 
-candump_result_t candump_parse_line(const char *line, hal_can_frame_t *frame)
+candump_result_t candump_parse_line(const char *line, hal_frame_t *frame)
 {
     const char *p = line;
     uint64_t sec = 0u, usec = 0u;
@@ -87,7 +87,7 @@ candump_result_t candump_parse_line(const char *line, hal_can_frame_t *frame)
     return CANDUMP_FRAME;
 }
 
-int candump_format_line(const hal_can_frame_t *frame, const char *channel, char *buf, size_t size)
+int candump_format_line(const hal_frame_t *frame, const char *channel, char *buf, size_t size)
 {
     uint32_t raw;
     int eff, n, i;

@@ -14,7 +14,7 @@
 
 #include <stddef.h>
 
-#include "hal_can.h"
+#include "hal.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -27,13 +27,13 @@ typedef enum {
 } candump_result_t;
 
 /* Parses one NUL-terminated line (a trailing "\n" or "\r\n" is allowed). The time
- * becomes frame->t_us (us); a 29-bit id gets bit 31 set, as in hal_can_frame_t. */
-candump_result_t candump_parse_line(const char *line, hal_can_frame_t *frame);
+ * becomes frame->t_us (us); a 29-bit id gets bit 31 set, as in hal_frame_t. */
+candump_result_t candump_parse_line(const char *line, hal_frame_t *frame);
 
 /* Writes the line for frame (with "\n") into buf of size bytes, NUL-terminated. Returns
  * the characters written without the NUL, or -1 if they do not fit or the frame cannot be
  * written (dlc > 8, id out of range, a channel name with a space). */
-int candump_format_line(const hal_can_frame_t *frame, const char *channel, char *buf, size_t size);
+int candump_format_line(const hal_frame_t *frame, const char *channel, char *buf, size_t size);
 
 #ifdef __cplusplus
 }

@@ -23,8 +23,9 @@
  * stages): it either succeeds, or it leaves the whole filter exactly as it was (state,
  * covariance, flags, every counter and diagnostic, rest detector, low-pass, clocks) except
  * its one error counter, diag.rejected (bad input) or diag.numeric (EKF_ERR_NUMERIC). Every
- * input is validated before the first write, and the stages run on a working copy that
- * replaces the filter's variables only when the whole call succeeded. EKF_GATED and
+ * input is validated before the first write; the call then saves the filter's variables in one
+ * copy, runs its stages on the variables themselves and puts the copy back if any stage or
+ * the guard at the end fails. EKF_GATED and
  * EKF_SKIPPED are not errors: the call was applied. After every successful call P is
  * symmetric positive definite with every variance >= var_floor, checked by the guard at the
  * end of the call: a P that rounding made indefinite by no more than a rounding-sized

@@ -41,7 +41,7 @@
 #endif
 
 /* Packed index of P_ij for any i, j (row i of P: att_cov_row[i][0..8]). */
-#define IX(i, j) ((uint8_t)(((i) >= (j)) ? (i) * ((i) + 1) / 2 + (j) : (j) * ((j) + 1) / 2 + (i)))
+#define IX(i, j) ((uint8_t)(((i) >= (j)) * ((i) * ((i) + 1) / 2 + (j)) + ((i) < (j)) * ((j) * ((j) + 1) / 2 + (i))))
 #define ROW(i) {IX(i, 0), IX(i, 1), IX(i, 2), IX(i, 3), IX(i, 4), IX(i, 5), IX(i, 6), IX(i, 7), IX(i, 8)}
 static const uint8_t att_cov_row[ATT_N][ATT_N] = {ROW(0), ROW(1), ROW(2), ROW(3), ROW(4), ROW(5), ROW(6), ROW(7), ROW(8)};
 typedef char att_cov_row_needs_9_states[(ATT_N == 9) ? 1 : -1];

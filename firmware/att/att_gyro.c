@@ -67,7 +67,7 @@ ekf_status_t att_stage_gyro(att_vars_t *v, const att_settings_t *s, const ekf_sc
             gated = 1;
             ekf_count(&v->diag.gyro_gated);
         } else if (st != EKF_OK) {
-            return st; /* EKF_ERR_NUMERIC: the call discards its working copy */
+            return st; /* EKF_ERR_NUMERIC: the caller puts the saved variables back */
         } else {
             ekf_count(&v->diag.gyro_fused);
             bypass_failed |= att_sensor_fails_gate(&info, s->gyro_gate);

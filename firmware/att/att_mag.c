@@ -194,12 +194,14 @@ ekf_status_t att_stage_mag(att_vars_t *v, const att_settings_t *s, const ekf_sca
         return EKF_GATED;
     }
     if (st != EKF_OK) {
-        return st; /* EKF_ERR_NUMERIC: the call discards its working copy */
+        return st; /* EKF_ERR_NUMERIC: the caller puts the saved variables back */
     }
     ekf_count(&v->diag.mag_fused);
     att_sensor_gate_result(v, s, ATT_SENSOR_MAG, 0);
     if (att_normalise(v)) {
         ekf_count(&v->diag.remaps);
     }
+    /* the heading update moves the pitch too, through their correlation */
+    att_update_gimbal_flag(v, s);
     return EKF_OK;
 }

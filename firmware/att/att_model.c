@@ -122,23 +122,21 @@ static void compose(const att_trig_t *t0, ekf_scalar_t phi, const ekf_scalar_t C
 void att_model_transition(const ekf_scalar_t x[ATT_N], const ekf_scalar_t w[3], ekf_scalar_t dt,
                           ekf_scalar_t theta_limit, ekf_scalar_t xn[ATT_N], att_motion_t *m)
 {
-    att_motion_t local;
-    att_motion_t *const mo = (m != NULL) ? m : &local;
     ekf_scalar_t u[3], ang[3], dpsi;
     int i;
     for (i = 0; i < 3; ++i) {
         u[i] = ekf_mul(x[ATT_P + i], dt);
     }
-    att_model_rotation(u, dt, mo->rot, mo->jd);
+    att_model_rotation(u, dt, m->rot, m->jd);
     /* the angles before the step as they are (no clamp: only sines and cosines) */
-    ekf_sincos(x[ATT_PHI], &mo->t0.sphi, &mo->t0.cphi);
-    ekf_sincos(x[ATT_THETA], &mo->t0.sth, &mo->t0.cth);
-    mo->t0.secth = EKF_C(0);
-    compose(&mo->t0, x[ATT_PHI], mo->rot, ang, &dpsi, &mo->t);
+    ekf_sincos(x[ATT_PHI], &m->t0.sphi, &m->t0.cphi);
+    ekf_sincos(x[ATT_THETA], &m->t0.sth, &m->t0.cth);
+    m->t0.secth = EKF_C(0);
+    compose(&m->t0, x[ATT_PHI], m->rot, ang, &dpsi, &m->t);
     xn[ATT_PHI] = ekf_wrap_pi(ang[0]);
     xn[ATT_THETA] = ang[1];
     xn[ATT_PSI] = ekf_wrap_pi(ekf_add(x[ATT_PSI], dpsi));
-    mo->remapped = ekf_abs(ekf_wrap_pi(ekf_sub(ang[0], x[ATT_PHI]))) > EKF_HALF_PI &&
+    m->remapped = ekf_abs(ekf_wrap_pi(ekf_sub(ang[0], x[ATT_PHI]))) > EKF_HALF_PI &&
                    ekf_abs(ekf_wrap_pi(dpsi)) > EKF_HALF_PI;
     for (i = 0; i < 3; ++i) {
         xn[ATT_P + i] = (w != NULL) ? ekf_add(x[ATT_P + i], w[i]) : x[ATT_P + i];
@@ -146,11 +144,11 @@ void att_model_transition(const ekf_scalar_t x[ATT_N], const ekf_scalar_t w[3], 
     /* the new angles' trigonometry from the composition (the wrap of phi changes none of it),
      * with the gimbal clamp of att_trig where the pitch is beyond the limit */
     if (ekf_abs(xn[ATT_THETA]) > theta_limit) {
-        (void)att_trig(xn[ATT_PHI], xn[ATT_THETA], theta_limit, &mo->t);
+        (void)att_trig(xn[ATT_PHI], xn[ATT_THETA], theta_limit, &m->t);
     } else {
-        mo->t.secth = ekf_div(EKF_C(1), mo->t.cth);
+        m->t.secth = ekf_div(EKF_C(1), m->t.cth);
     }
-    att_gen_euler_rates(&mo->t, &xn[ATT_P], &xn[ATT_PHID]);
+    att_gen_euler_rates(&m->t, &xn[ATT_P], &xn[ATT_PHID]);
 }
 
 int att_model_normalise(ekf_scalar_t x[ATT_N])

@@ -46,8 +46,8 @@ void att_model_rotation(const ekf_scalar_t u[3], ekf_scalar_t s, ekf_scalar_t C[
  * Theta+ is read off the composed rotation with phi, psi in [-pi, pi), theta in
  * [-pi/2, pi/2]; within sqrt(eps) of +-90 deg pitch, where roll and heading are not
  * separable, roll keeps its value and the heading takes the rest of the rotation. w: body-rate
- * increment over the step (rad/s), NULL for zero. m (may be NULL) receives what the Jacobian
- * needs. xn must not alias x.
+ * increment over the step (rad/s), NULL for zero. m receives what the Jacobian and the
+ * low-pass need. xn must not alias x.
  */
 void att_model_transition(const ekf_scalar_t x[ATT_N], const ekf_scalar_t w[3], ekf_scalar_t dt,
                           ekf_scalar_t theta_limit, ekf_scalar_t xn[ATT_N], att_motion_t *m);

@@ -50,6 +50,38 @@ void att_get_quaternion(const att_ekf_t *f, ekf_scalar_t q[4])
     att_model_euler_to_quat(f->vars.x[ATT_PHI], f->vars.x[ATT_THETA], f->vars.x[ATT_PSI], q);
 }
 
+/* Beyond the gimbal limit the covariance was propagated with W at the clamped pitch, but a
+ * body-frame error maps into roll and heading by the true sec(theta): their rows and columns
+ * are scaled by up to cos(gimbal_limit) / |cos(theta)|, each at most so far that its variance
+ * stays within heading_var_max (a congruence with a positive diagonal, so c stays positive
+ * semi-definite; docs/derivation.md, "Gimbal lock"). */
+static ekf_scalar_t gimbal_factor(const att_settings_t *s, ekf_scalar_t c_th, ekf_scalar_t var)
+{
+    const ekf_scalar_t c_lim = ekf_cos(s->gimbal_limit);
+    ekf_scalar_t k_max;
+    if (!(ekf_max(var, s->var_floor) < s->heading_var_max)) {
+        return EKF_C(1);
+    }
+    k_max = ekf_sqrt(ekf_div(s->heading_var_max, ekf_max(var, s->var_floor)));
+    return (ekf_mul(c_th, k_max) > c_lim) ? ekf_max(ekf_div(c_lim, c_th), EKF_C(1)) : k_max;
+}
+
+static void gimbal_scale(const att_vars_t *v, const att_settings_t *s, ekf_scalar_t c[6])
+{
+    ekf_scalar_t c_th, k_phi, k_psi;
+    if ((v->flags & ATT_FLAG_GIMBAL_LOCK) == 0u) {
+        return;
+    }
+    c_th = ekf_abs(ekf_cos(v->x[ATT_THETA]));
+    k_phi = gimbal_factor(s, c_th, c[0]);
+    k_psi = gimbal_factor(s, c_th, c[2]);
+    c[0] = ekf_mul(ekf_mul(c[0], k_phi), k_phi);
+    c[2] = ekf_mul(ekf_mul(c[2], k_psi), k_psi);
+    c[4] = ekf_mul(ekf_mul(c[4], k_phi), k_psi);
+    c[3] = ekf_mul(c[3], k_phi);
+    c[5] = ekf_mul(c[5], k_psi);
+}
+
 void att_get_angle_covariance(const att_ekf_t *f, ekf_scalar_t c[6])
 {
     const att_settings_t *s = &f->settings;
@@ -70,6 +102,7 @@ void att_get_angle_covariance(const att_ekf_t *f, ekf_scalar_t c[6])
     if ((v->flags & ATT_FLAG_HEADING_LIMITED) == 0u && v->mag_ref_norm > EKF_C(0)) {
         c[2] = ekf_add(c[2], ekf_sq(s->mag_ref_sigma));
     }
+    gimbal_scale(v, s, c);
     /* an unobserved heading is at most uniform: never report more than the cap */
     c[2] = ekf_min(c[2], s->heading_var_max);
 }

@@ -33,7 +33,10 @@ const att_settings_t att_default_settings = {
 /* What the square of a setting must be in the build's scalar (the check column). */
 enum { CHECK_ANY, CHECK_FIN2, CHECK_POS2, CHECK_ZPOS2 };
 
+/* prefix and unit are string literals pasted to #name, field a member designator (rest.x):
+ * neither can take parentheses. */
 #define INFO(prefix, field, name, type, lo, hi, check, live, unit)                                       \
+    /* NOLINTNEXTLINE(bugprone-macro-parentheses) */                                                     \
     {prefix #name, unit, (uint16_t)offsetof(att_settings_t, field), (uint8_t)ATT_SETTING_##type##_TYPE, \
      (uint8_t)CHECK_##check, (uint8_t)(live), EKF_C(lo), EKF_C(hi)},
 #define ATT_SETTING_S_TYPE ATT_SETTING_SCALAR

@@ -4,11 +4,13 @@
 Simulates a recording (attekf.sim: rotations, linear-acceleration and magnetic-disturbance
 episodes, so that the de-weighting, rejection and gating branches run too), runs it through
 the firmware image under QEMU (attekf_fw.elf) and through the same program built for the
-host (attekf-fw-host: same application loop, same HAL backend, same float filter), and
-compares the outputs row by row:
+host (attekf-fw-host: same application loop, same HAL backend, same float filter), both with
+the same command file (the node's text commands: a live setting, a setting that waits for a
+restart, the restart, a refused value, a query), and compares the outputs row by row:
 
   * the same rows (sample times, sequence numbers), the same status words (filter flags,
-    HAL flags): every discrete decision was the same;
+    node flags): every discrete decision was the same;
+  * the same replies to the commands, and the ones expected;
   * roll, pitch and yaw within --tolerance rad on every row (yaw difference wrapped).
 
 Prints the largest difference per angle and how many rows are bit-identical. Exit status 0
@@ -29,7 +31,17 @@ import sys
 HERE = os.path.dirname(os.path.abspath(__file__))
 ANGLES = ("roll_rad", "pitch_rad", "yaw_rad")
 OTHER = ("sigma_roll_rad", "sigma_pitch_rad", "sigma_yaw_rad", "rate_p_rad_s", "rate_q_rad_s", "rate_r_rad_s")
-EXACT = ("t_s", "flags", "hal_flags", "seq")
+EXACT = ("t_s", "flags", "node_flags", "seq")
+# The node's text commands at times of the recording (firmware/app/app_text.c), and the reply
+# each must give: the live one in force at once, the other pending until the restart.
+COMMANDS = (
+    ("10.0", "set mag_declination 0.05", "# mag_declination 0.0500000007"),
+    ("10.0", "get mag_declination", "# mag_declination 0.0500000007"),
+    ("20.0", "set accel_lpf_order 1", "# accel_lpf_order 1 (pending restart)"),
+    ("20.0", "set gyro_noise -1", "# error: gyro_noise -1: out of range"),
+    ("30.0", "restart", "# restarting"),
+    ("30.0", "get accel_lpf_order", "# accel_lpf_order 1"),
+)
 
 
 def fail(msg, code=2):
@@ -54,8 +66,11 @@ def run(cmd, cwd, what):
 
 
 def read(path):
+    """The CSV rows and the reply lines ("# ...") of an output file."""
     with open(path, newline="", encoding="utf-8") as f:
-        return list(csv.DictReader(f))
+        lines = f.read().splitlines()
+    replies = [l for l in lines if l.startswith("#")]
+    return list(csv.DictReader(l for l in lines if not l.startswith("#"))), replies
 
 
 def num(cell):
@@ -80,17 +95,23 @@ def main():
     os.makedirs(args.workdir, exist_ok=True)
     rec = os.path.join(args.workdir, "recording.csv")
     make_recording(rec, args.duration, args.seed)
+    with open(os.path.join(args.workdir, "commands.txt"), "w", encoding="utf-8") as f:
+        f.write("# T_S COMMAND\n" + "".join(f"{t} {c}\n" for t, c, _r in COMMANDS))
     # relative names: the semihosting command line is short
     fw_out = run([os.path.join(HERE, "qemu_run.sh"), "--machine", args.machine, os.path.abspath(args.firmware),
-                  "recording.csv", "out_firmware.csv"], args.workdir, "firmware under QEMU")
-    host_out = run([os.path.abspath(args.host), "recording.csv", "out_host.csv"], args.workdir, "host program")
+                  "recording.csv", "out_firmware.csv", "commands.txt"], args.workdir, "firmware under QEMU")
+    host_out = run([os.path.abspath(args.host), "recording.csv", "out_host.csv", "commands.txt"], args.workdir,
+                   "host program")
     if not args.quiet:
         print(f"firmware: {fw_out}\nhost:     {host_out}")
 
-    a = read(os.path.join(args.workdir, "out_firmware.csv"))
-    b = read(os.path.join(args.workdir, "out_host.csv"))
+    a, replies_a = read(os.path.join(args.workdir, "out_firmware.csv"))
+    b, replies_b = read(os.path.join(args.workdir, "out_host.csv"))
     if len(a) != len(b) or not a:
         fail(f"{len(a)} firmware rows, {len(b)} host rows", 1)
+    if replies_a != replies_b or replies_a != [r for _t, _c, r in COMMANDS]:
+        fail(f"replies to the commands: firmware {replies_a}, host {replies_b}, expected "
+             f"{[r for _t, _c, r in COMMANDS]}", 1)
     worst = {c: (0.0, 0) for c in ANGLES + OTHER}
     identical = 0
     aligned = 0

@@ -1,6 +1,6 @@
 /*
- * hal_target.c - HAL backend of the firmware image: recording in, attitude CSV out, over
- * semihosting stdio (see hal_target.h).
+ * hal_target.c - HAL backend of the firmware image: a recording and a command file in, the
+ * application's lines out, over semihosting stdio (see hal_target.h).
  */
 #include "hal_target.h"
 
@@ -21,13 +21,18 @@ static const char *const col_names[COL_N] = {
 /* Largest accepted time, s (31,700 years): t * 1e6 stays far inside uint64_t. */
 #define T_MAX_S 1e12
 
-static void fail(hal_target_t *t, const char *what, const char *detail)
+static void fail_at(hal_target_t *t, const char *file, unsigned long line, const char *what, const char *detail)
 {
-    fprintf(stderr, "%s:%lu: %s%s%s\n", t->in_name, t->lineno, what, detail[0] ? ": " : "", detail);
+    fprintf(stderr, "%s:%lu: %s%s%s\n", file, line, what, detail[0] ? ": " : "", detail);
     if (t->errors != UINT32_MAX) {
         ++t->errors;
     }
     t->failed = 1u;
+}
+
+static void fail(hal_target_t *t, const char *what, const char *detail)
+{
+    fail_at(t, t->in_name, t->lineno, what, detail);
 }
 
 /* Next line that is neither empty nor a comment, without its line break; 0 at the end of
@@ -185,8 +190,53 @@ static int read_row(hal_target_t *t)
     }
     s->valid = (uint8_t)(HAL_HAS_GYRO | HAL_HAS_ACCEL | (mag_cells == 3 ? HAL_HAS_MAG : 0u));
     s->seq = t->seq++;
-    hal_count(&t->counters[HAL_CNT_RX_FRAMES]);
     return 1;
+}
+
+/* Reads the next command into t->next_cmd: 1, or 0 at the end of the file or on a malformed
+ * line (t->failed set, message printed). */
+static int read_command(hal_target_t *t)
+{
+    char buf[HAL_TARGET_LINE_MAX];
+    while (fgets(buf, sizeof buf, t->cmd) != NULL) {
+        size_t len = strlen(buf);
+        char *p = buf, *end = NULL;
+        double ts;
+        ++t->cmd_lineno;
+        if (len == sizeof buf - 1u && buf[len - 1u] != '\n' && !feof(t->cmd)) {
+            fail_at(t, t->cmd_name, t->cmd_lineno, "line too long", "");
+            return 0;
+        }
+        while (len > 0u && (buf[len - 1u] == '\n' || buf[len - 1u] == '\r')) {
+            buf[--len] = '\0';
+        }
+        while (*p == ' ' || *p == '\t') {
+            ++p;
+        }
+        if (*p == '\0' || *p == '#') {
+            continue;
+        }
+        ts = strtod(p, &end);
+        if (end == p || !(ts >= 0.0 && ts <= T_MAX_S) || (*end != ' ' && *end != '\t')) {
+            fail_at(t, t->cmd_name, t->cmd_lineno, "expected: T_S COMMAND (a time in 0..1e12 s, then the command)", "");
+            return 0;
+        }
+        while (*end == ' ' || *end == '\t') {
+            ++end;
+        }
+        len = strlen(end);
+        if (len >= sizeof t->next_cmd.text) {
+            fail_at(t, t->cmd_name, t->cmd_lineno, "command too long", "");
+            return 0;
+        }
+        t->next_cmd.t_us = (uint64_t)(ts * 1e6 + 0.5);
+        memcpy(t->next_cmd.text, end, len + 1u);
+        return 1;
+    }
+    if (ferror(t->cmd)) {
+        fail_at(t, t->cmd_name, t->cmd_lineno, "read error", "");
+    }
+    return 0;
 }
 
 static uint64_t op_now_us(void *ctx)
@@ -194,96 +244,89 @@ static uint64_t op_now_us(void *ctx)
     return ((const hal_target_t *)ctx)->now_us;
 }
 
-static hal_status_t op_read_sample(void *ctx, hal_sample_t *out, uint32_t timeout_us)
+/* Reads ahead what is missing of the next row and the next command. */
+static void read_ahead(hal_target_t *t)
+{
+    if (!t->have_next && !t->eof) {
+        t->have_next = (uint8_t)read_row(t);
+        t->eof = (uint8_t)!t->have_next;
+    }
+    if (t->cmd != NULL && !t->have_cmd && !t->cmd_eof && !t->failed) {
+        t->have_cmd = (uint8_t)read_command(t);
+        t->cmd_eof = (uint8_t)!t->have_cmd;
+    }
+}
+
+static hal_status_t op_receive(void *ctx, hal_input_t *in, uint32_t timeout_us)
 {
     hal_target_t *t = ctx;
-    if (out == NULL) {
+    int take_cmd;
+    uint64_t due;
+    if (in == NULL) {
         return HAL_ERR_ARG;
     }
-    if (!t->have_next && !t->eof) {
-        if (read_row(t)) {
-            t->have_next = 1u;
-        } else {
-            t->eof = 1u;
-            if (t->failed) {
-                return HAL_ERR_IO; /* once; then HAL_END */
-            }
+    read_ahead(t);
+    if (t->failed) {
+        if (!t->failure_returned) {
+            t->failure_returned = 1u;
+            return HAL_ERR_IO; /* once; then HAL_END */
         }
-    }
-    if (!t->have_next) {
         return HAL_END;
     }
-    if (t->next.rx_us > t->now_us + timeout_us) {
+    if (!t->have_next && !t->have_cmd) {
+        return HAL_END;
+    }
+    /* a command goes before a sample of the same time */
+    take_cmd = t->have_cmd && (!t->have_next || t->next_cmd.t_us <= t->next.rx_us);
+    due = take_cmd ? t->next_cmd.t_us : t->next.rx_us;
+    if (due > t->now_us + timeout_us) {
         t->now_us += timeout_us; /* "waited" the whole timeout */
         return HAL_EMPTY;
     }
-    *out = t->next;
-    t->have_next = 0u;
-    if (out->rx_us > t->now_us) {
-        t->now_us = out->rx_us;
+    if (take_cmd) {
+        in->kind = HAL_IN_LINE;
+        in->u.line = t->next_cmd;
+        t->have_cmd = 0u;
+    } else {
+        in->kind = HAL_IN_SAMPLE;
+        in->u.sample = t->next;
+        t->have_next = 0u;
     }
+    if (due > t->now_us) {
+        t->now_us = due;
+    }
+    hal_count(&t->stats.rx_frames);
     return HAL_OK;
 }
 
-static void put_float(FILE *f, float v, int aligned)
-{
-    if (aligned) {
-        fprintf(f, ",%.9g", (double)v);
-    } else {
-        fputs(",", f);
-    }
-}
-
-static hal_status_t op_publish(void *ctx, const hal_output_t *o)
+static hal_status_t op_write_line(void *ctx, const char *text)
 {
     hal_target_t *t = ctx;
-    const int aligned = (o->flags & HAL_FLAG_ALIGNED) != 0u;
-    int i;
-    if (o->kind == HAL_OUT_HEARTBEAT) {
-        hal_count(&t->heartbeats);
-        return HAL_OK;
+    if (text == NULL) {
+        return HAL_ERR_ARG;
     }
-    fprintf(t->out, "%" PRIu64 ".%06" PRIu64, o->t_us / 1000000u, o->t_us % 1000000u);
-    for (i = 0; i < 3; ++i) {
-        put_float(t->out, o->euler[i], aligned);
-    }
-    for (i = 0; i < 3; ++i) {
-        put_float(t->out, o->sigma[i], aligned);
-    }
-    for (i = 0; i < 3; ++i) {
-        put_float(t->out, o->rates[i], aligned);
-    }
-    if (fprintf(t->out, ",%" PRIu32 ",%u,%u\n", o->att_flags, (unsigned)o->flags, (unsigned)o->seq) < 0) {
-        hal_count(&t->counters[HAL_CNT_TX_ERRORS]);
+    if (fputs(text, t->out) == EOF || fputc('\n', t->out) == EOF) {
+        hal_count(&t->stats.tx_errors);
         hal_count(&t->errors);
         return HAL_ERR_IO;
     }
-    hal_count(&t->written);
-    hal_count(&t->counters[HAL_CNT_TX_FRAMES]);
+    hal_count(&t->stats.tx_frames);
     return HAL_OK;
 }
 
-static void op_get_counters(void *ctx, uint32_t counters[HAL_CNT_COUNT])
-{
-    const hal_target_t *t = ctx;
-    int i;
-    for (i = HAL_CNT_LINK_FIRST; i < HAL_CNT_LINK_END; ++i) {
-        counters[i] = t->counters[i];
-    }
-}
+static void op_stats(void *ctx, hal_link_stats_t *s) { *s = ((const hal_target_t *)ctx)->stats; }
 
-static void op_report(void *ctx, hal_level_t level, hal_event_t event, int32_t detail)
+static void op_log(void *ctx, hal_level_t level, const char *event, int32_t detail)
 {
     (void)ctx;
     if (level <= HAL_LOG_WARN) {
-        fprintf(stderr, "%s: %s %ld\n", level == HAL_LOG_ERROR ? "error" : "warning", hal_event_name(event),
-                (long)detail);
+        fprintf(stderr, "%s: %s %ld\n", level == HAL_LOG_ERROR ? "error" : "warning", event, (long)detail);
     }
 }
 
-static const hal_ops_t target_ops = {op_now_us, op_read_sample, op_publish, op_get_counters, op_report};
+static const hal_ops_t target_ops = {op_now_us, op_receive, NULL, op_write_line, op_stats, op_log};
 
-hal_status_t hal_target_open(hal_target_t *t, const char *recording, const char *output)
+hal_status_t hal_target_open(hal_target_t *t, const char *recording, const char *output, const char *commands)
 {
     if (t == NULL || recording == NULL || output == NULL) {
         return HAL_ERR_ARG;
@@ -300,23 +343,32 @@ hal_status_t hal_target_open(hal_target_t *t, const char *recording, const char 
         t->in = NULL;
         return HAL_ERR_IO;
     }
+    if (commands != NULL) {
+        t->cmd_name = commands;
+        t->cmd = fopen(commands, "r");
+        if (t->cmd == NULL) {
+            fprintf(stderr, "%s: cannot open\n", commands);
+            fclose(t->in);
+            t->in = NULL;
+            return HAL_ERR_IO;
+        }
+    }
     t->out = fopen(output, "w");
     if (t->out == NULL) {
         fprintf(stderr, "%s: cannot create\n", output);
         fclose(t->in);
         t->in = NULL;
+        if (t->cmd != NULL) {
+            fclose(t->cmd);
+            t->cmd = NULL;
+        }
         return HAL_ERR_IO;
     }
-    fputs("t_s,roll_rad,pitch_rad,yaw_rad,sigma_roll_rad,sigma_pitch_rad,sigma_yaw_rad,"
-          "rate_p_rad_s,rate_q_rad_s,rate_r_rad_s,flags,hal_flags,seq\n",
-          t->out);
     /* start the clock at the first sample, so the application does not see a silence
      * before the recording starts */
-    if (read_row(t)) {
-        t->have_next = 1u;
+    read_ahead(t);
+    if (t->have_next) {
         t->now_us = t->next.rx_us;
-    } else {
-        t->eof = 1u;
     }
     return HAL_OK;
 }
@@ -340,7 +392,11 @@ hal_status_t hal_target_close(hal_target_t *t)
     if (t->in != NULL) {
         fclose(t->in);
     }
+    if (t->cmd != NULL) {
+        fclose(t->cmd);
+    }
     t->in = NULL;
+    t->cmd = NULL;
     t->out = NULL;
     return st;
 }

@@ -1,7 +1,7 @@
 /*
  * hal_socketcan.c - Linux SocketCAN backend (hal_socketcan.h).
  */
-#define _GNU_SOURCE 1 /* ppoll, if_nametoindex with -std=c99 */
+#define _GNU_SOURCE 1 /* ppoll, recvmmsg, sendmmsg, if_nametoindex with -std=c99 */
 
 #include "hal_socketcan.h"
 
@@ -32,7 +32,7 @@ static uint64_t clock_us(clockid_t id)
 
 uint64_t hal_socketcan_now_us(void) { return clock_us(CLOCK_MONOTONIC); }
 
-static void report(const hal_socketcan_t *c, hal_level_t level, hal_event_t ev, int32_t detail)
+static void report(const hal_socketcan_t *c, hal_level_t level, const char *ev, int32_t detail)
 {
     if (c->report != NULL) {
         c->report(c->report_user, level, ev, detail);
@@ -102,8 +102,6 @@ hal_status_t hal_socketcan_open(hal_socketcan_t *c, const char *ifname,
     c->cfg = *cfg;
     c->report = report_fn;
     c->report_user = report_user;
-    hal_can_rx_init(&c->rx);
-    hal_can_tx_init(&c->tx);
     c->fd = open_socket(c);
     if (c->fd < 0) {
         return HAL_ERR_IO;
@@ -126,8 +124,8 @@ static void link_lost(hal_socketcan_t *c, int err, int close_it)
     if (c->link_up) {
         c->link_up = 0u;
         c->down_returned = 0u;
-        hal_count(&c->counters[HAL_CNT_LINK_DOWN]);
-        report(c, HAL_LOG_WARN, HAL_EV_LINK_DOWN, (int32_t)err);
+        hal_count(&c->stats.link_down);
+        report(c, HAL_LOG_WARN, "link_down", (int32_t)err);
     }
     if (close_it && c->fd >= 0) {
         (void)close(c->fd);
@@ -140,7 +138,7 @@ static void link_back(hal_socketcan_t *c)
 {
     if (!c->link_up) {
         c->link_up = 1u;
-        report(c, HAL_LOG_INFO, HAL_EV_LINK_UP, 0);
+        report(c, HAL_LOG_INFO, "link_up", 0);
     }
 }
 
@@ -189,7 +187,7 @@ int hal_socketcan_rx_msg(hal_socketcan_t *c, const struct can_frame *cf, size_t 
 {
     struct cmsghdr *cm;
     uint64_t ts_real_us = 0u;
-    hal_can_frame_t *f;
+    hal_frame_t *f;
     if (msg_len != sizeof(*cf) || c->rx_n >= HAL_SOCKETCAN_BATCH) {
         return 0; /* not a classic CAN frame (CAN FD is off), or no room (never: one batch) */
     }
@@ -209,8 +207,8 @@ int hal_socketcan_rx_msg(hal_socketcan_t *c, const struct can_frame *cf, size_t 
             memcpy(&drops, CMSG_DATA(cm), sizeof(drops));
             if (drops != c->kernel_drops) {
                 const uint32_t lost = drops - c->kernel_drops;
-                hal_count_n(&c->counters[HAL_CNT_RX_OVERFLOW], lost);
-                report(c, HAL_LOG_WARN, HAL_EV_RX_OVERFLOW, (int32_t)(lost > INT32_MAX ? INT32_MAX : lost));
+                hal_count_n(&c->stats.rx_overflow, lost);
+                report(c, HAL_LOG_WARN, "rx_overflow", (int32_t)(lost > INT32_MAX ? INT32_MAX : lost));
                 c->kernel_drops = drops;
             }
         }
@@ -229,8 +227,8 @@ int hal_socketcan_rx_msg(hal_socketcan_t *c, const struct can_frame *cf, size_t 
             f->t_us = hal_socketcan_now_us(); /* no usable timestamp: now is the best estimate */
         }
     }
-    f->id = (cf->can_id & CAN_EFF_FLAG) ? (cf->can_id & CAN_EFF_MASK) | 0x80000000u : cf->can_id & CAN_SFF_MASK;
-    f->dlc = cf->can_dlc; /* > 8 is reported as a wrong length by the assembler */
+    f->id = (cf->can_id & CAN_EFF_FLAG) ? (cf->can_id & CAN_EFF_MASK) | HAL_FRAME_EXT : cf->can_id & CAN_SFF_MASK;
+    f->dlc = cf->can_dlc; /* > 8 is refused by the protocol that takes the id */
     memcpy(f->data, cf->data, 8u);
     ++c->rx_n;
     return 1;
@@ -284,28 +282,17 @@ static int fill(hal_socketcan_t *c)
     return 0;
 }
 
-/* Feeds buffered frames to the assembler until a sample is complete: its small ready queue
- * never overflows however far behind we are (the backlog waits in the socket buffer). */
-static void feed(hal_socketcan_t *c)
-{
-    while (c->rx_n > 0u && c->rx.ready_n == 0u) {
-        hal_can_rx_frame(&c->rx, &c->rxbuf[c->rx_head]);
-        c->rx_head = (uint16_t)((c->rx_head + 1u) % HAL_SOCKETCAN_BATCH);
-        --c->rx_n;
-    }
-}
-
 static uint64_t op_now(void *ctx)
 {
     (void)ctx;
     return hal_socketcan_now_us();
 }
 
-static hal_status_t op_read(void *ctx, hal_sample_t *out, uint32_t timeout_us)
+static hal_status_t op_receive(void *ctx, hal_input_t *in, uint32_t timeout_us)
 {
     hal_socketcan_t *c = (hal_socketcan_t *)ctx;
     const uint64_t deadline = hal_socketcan_now_us() + timeout_us;
-    if (out == NULL) {
+    if (in == NULL) {
         return HAL_ERR_ARG;
     }
     for (;;) {
@@ -315,8 +302,12 @@ static hal_status_t op_read(void *ctx, hal_sample_t *out, uint32_t timeout_us)
         uint64_t left;
         int r;
 
-        feed(c);
-        if (hal_can_rx_pop(&c->rx, out)) {
+        if (c->rx_n > 0u) {
+            in->kind = HAL_IN_FRAME;
+            in->u.frame = c->rxbuf[c->rx_head];
+            c->rx_head = (uint16_t)((c->rx_head + 1u) % HAL_SOCKETCAN_BATCH);
+            --c->rx_n;
+            hal_count(&c->stats.rx_frames);
             return HAL_OK;
         }
         if (c->fd >= 0 && fill(c) == 0 && c->rx_n > 0u) {
@@ -357,63 +348,73 @@ static hal_status_t op_read(void *ctx, hal_sample_t *out, uint32_t timeout_us)
     }
 }
 
-static hal_status_t op_publish(void *ctx, const hal_output_t *out)
+/* A failed send of `failed` frames: counted, the link's state updated. */
+static hal_status_t send_failed(hal_socketcan_t *c, size_t failed, int err)
+{
+    hal_count_n(&c->stats.tx_errors, (uint32_t)failed);
+    if (err == ENETDOWN || err == ENODEV || err == ENXIO) {
+        link_lost(c, err, err != ENETDOWN);
+        return HAL_ERR_LINK_DOWN;
+    }
+    /* ENOBUFS: the interface's transmit queue is full (a slow real bus). */
+    report(c, HAL_LOG_DEBUG, "tx_error", (int32_t)err);
+    return HAL_ERR_IO;
+}
+
+#define SEND_BATCH 16u /* frames per sendmmsg call */
+
+static hal_status_t op_send_frames(void *ctx, const hal_frame_t *frames, size_t n)
 {
     hal_socketcan_t *c = (hal_socketcan_t *)ctx;
-    hal_can_frame_t frames[HAL_CAN_MAX_OUT_FRAMES];
-    hal_status_t st = HAL_OK;
-    size_t n, i;
-    if (out == NULL) {
+    size_t done = 0;
+    if (frames == NULL && n > 0u) {
         return HAL_ERR_ARG;
     }
-    n = hal_can_encode_output(&c->tx, out, frames);
-    for (i = 0; i < n; ++i) {
-        struct can_frame cf;
-        ssize_t w;
+    while (done < n) {
+        struct can_frame cf[SEND_BATCH];
+        struct iovec iov[SEND_BATCH];
+        struct mmsghdr mm[SEND_BATCH];
+        size_t k = n - done; /* > 0 */
+        size_t i;
+        int sent;
         if (c->fd < 0) {
-            hal_count(&c->counters[HAL_CNT_TX_ERRORS]);
-            st = HAL_ERR_LINK_DOWN;
-            continue;
+            hal_count_n(&c->stats.tx_errors, (uint32_t)(n - done));
+            return HAL_ERR_LINK_DOWN;
         }
-        memset(&cf, 0, sizeof(cf));
-        cf.can_id = frames[i].id;
-        cf.can_dlc = frames[i].dlc;
-        memcpy(cf.data, frames[i].data, 8u);
-        w = send(c->fd, &cf, sizeof(cf), MSG_DONTWAIT);
-        if (w == (ssize_t)sizeof(cf)) {
-            hal_count(&c->counters[HAL_CNT_TX_FRAMES]);
-            continue;
+        if (k > SEND_BATCH) {
+            k = SEND_BATCH;
         }
-        hal_count(&c->counters[HAL_CNT_TX_ERRORS]);
-        if (w < 0 && (errno == ENETDOWN || errno == ENODEV || errno == ENXIO)) {
-            link_lost(c, errno, errno != ENETDOWN);
-            st = HAL_ERR_LINK_DOWN;
-        } else {
-            /* ENOBUFS: the interface's transmit queue is full (a slow real bus). */
-            report(c, HAL_LOG_DEBUG, HAL_EV_TX_ERROR, (int32_t)(w < 0 ? errno : 0));
-            st = HAL_ERR_IO;
+        memset(mm, 0, sizeof(mm));
+        for (i = 0; i < k; ++i) {
+            const hal_frame_t *f = &frames[done + i];
+            memset(&cf[i], 0, sizeof(cf[i]));
+            cf[i].can_id = (f->id & HAL_FRAME_EXT) ? (f->id & CAN_EFF_MASK) | CAN_EFF_FLAG : f->id & CAN_SFF_MASK;
+            cf[i].can_dlc = (f->dlc > 8u) ? 8u : f->dlc;
+            memcpy(cf[i].data, f->data, 8u);
+            iov[i].iov_base = &cf[i];
+            iov[i].iov_len = sizeof(cf[i]);
+            mm[i].msg_hdr.msg_iov = &iov[i];
+            mm[i].msg_hdr.msg_iovlen = 1;
         }
+        sent = sendmmsg(c->fd, mm, (unsigned)k, MSG_DONTWAIT);
+        if (sent <= 0) {
+            return send_failed(c, n - done, sent < 0 ? errno : EIO);
+        }
+        hal_count_n(&c->stats.tx_frames, (uint32_t)sent);
+        done += (size_t)sent;
     }
-    return st;
+    return HAL_OK;
 }
 
-static void op_counters(void *ctx, uint32_t counters[HAL_CNT_COUNT])
-{
-    const hal_socketcan_t *c = (const hal_socketcan_t *)ctx;
-    int i;
-    for (i = HAL_CNT_LINK_FIRST; i < HAL_CNT_LINK_END; ++i) {
-        counters[i] = c->counters[i];
-    }
-    hal_can_rx_add_counters(&c->rx, counters);
-}
+static void op_stats(void *ctx, hal_link_stats_t *s) { *s = ((const hal_socketcan_t *)ctx)->stats; }
 
-static void op_report(void *ctx, hal_level_t level, hal_event_t event, int32_t detail)
+static void op_log(void *ctx, hal_level_t level, const char *event, int32_t detail)
 {
     report((const hal_socketcan_t *)ctx, level, event, detail);
 }
 
 static const hal_ops_t socketcan_ops = {
-    op_now, op_read, op_publish, op_counters, op_report,
+    op_now, op_receive, op_send_frames, NULL, op_stats, op_log,
 };
 
 void hal_socketcan_bind(hal_socketcan_t *c, hal_t *hal)

@@ -1,12 +1,13 @@
 /*
- * hal_socketcan.h - Linux SocketCAN backend of the HAL (PF_CAN, SOCK_RAW, CAN_RAW).
+ * hal_socketcan.h - Linux SocketCAN backend of the HAL (PF_CAN, SOCK_RAW, CAN_RAW): CAN frames
+ * in and out, 11-bit and 29-bit ids, whatever protocol they carry.
  *
  * One raw socket on the named interface (can0, vcan0, ...), non-blocking, waited on with
- * ppoll and read in batches (recvmmsg); every frame carries the kernel's receive timestamp (SO_TIMESTAMPNS), converted to
- * the backend's CLOCK_MONOTONIC time base. Kernel-side drops (socket queue full) are read
- * from SO_RXQ_OVFL and counted (HAL_CNT_RX_OVERFLOW); the receive buffer is enlarged
- * (SO_RCVBUFFORCE when allowed, else SO_RCVBUF) because a burst of frames otherwise
- * overflows the default 208 KiB.
+ * ppoll and read in batches (recvmmsg); every frame carries the kernel's receive timestamp
+ * (SO_TIMESTAMPNS), converted to the backend's CLOCK_MONOTONIC time base. Frames are sent in
+ * batches too (sendmmsg). Kernel-side drops (socket queue full) are read from SO_RXQ_OVFL and
+ * counted (rx_overflow); the receive buffer is enlarged (SO_RCVBUFFORCE when allowed, else
+ * SO_RCVBUF) because a burst of frames otherwise overflows the default 208 KiB.
  *
  * Link loss: ENETDOWN on the socket (interface set down) is counted once and reported; the
  * socket stays bound and frames flow again when the interface comes back up. ENODEV or any
@@ -20,7 +21,6 @@
 #include <stdint.h>
 
 #include "hal.h"
-#include "hal_can.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -29,7 +29,8 @@ extern "C" {
 #define HAL_SOCKETCAN_IFNAME_MAX 16 /* IFNAMSIZ, with the terminating NUL */
 #define HAL_SOCKETCAN_BATCH 32      /* frames read per system call (recvmmsg) */
 
-typedef void (*hal_socketcan_report_fn)(void *user, hal_level_t level, hal_event_t event, int32_t detail);
+/* Events: "link_down" (errno), "link_up", "rx_overflow" (frames lost), "tx_error" (errno). */
+typedef void (*hal_socketcan_report_fn)(void *user, hal_level_t level, const char *event, int32_t detail);
 
 typedef struct {
     uint32_t rcvbuf_bytes;     /* receive buffer asked for, bytes (0: kernel default) */
@@ -49,12 +50,10 @@ typedef struct {
     uint64_t next_reopen_us;
     uint64_t next_check_us;   /* next interface-flags check while down */
     int rcvbuf_actual;        /* bytes the kernel granted (0 if unknown) */
-    hal_can_frame_t rxbuf[HAL_SOCKETCAN_BATCH]; /* read, not yet assembled */
+    hal_frame_t rxbuf[HAL_SOCKETCAN_BATCH]; /* read, not yet delivered */
     uint16_t rx_head;
     uint16_t rx_n;
-    hal_can_rx_t rx;
-    hal_can_tx_t tx;
-    uint32_t counters[HAL_CNT_COUNT];
+    hal_link_stats_t stats;
     hal_socketcan_report_fn report;
     void *report_user;
 } hal_socketcan_t;
@@ -73,10 +72,10 @@ void hal_socketcan_bind(hal_socketcan_t *c, hal_t *hal);
 /* CLOCK_MONOTONIC, us: the time base of this backend (now_us, sample rx_us). */
 uint64_t hal_socketcan_now_us(void);
 
-/* The receive path below the socket (used by read_sample; public as the seam the fuzz
+/* The receive path below the socket (used by receive; public as the seam the fuzz
  * target tests/fuzz/fuzz_socketcan.c feeds raw frames through, no kernel CAN needed): one
  * message as recvmmsg returned it, msg_len bytes of *cf with msg's control messages
- * (SCM_TIMESTAMPNS, SO_RXQ_OVFL), into the frame buffer read_sample assembles from.
+ * (SCM_TIMESTAMPNS, SO_RXQ_OVFL), into the frame buffer receive delivers from.
  * mono_minus_real: CLOCK_MONOTONIC - CLOCK_REALTIME, us. Returns 1 if a frame was
  * buffered, 0 if the message was not a classic data frame (or the buffer is full). */
 struct can_frame;

@@ -1,7 +1,7 @@
 /*
  * can_blast.c - attekf-can-blast: the sender of the CAN throughput benchmark.
  *
- * Sends IMU samples in the node's protocol (hal/can, 4 frames per sample: gyro, accel, mag,
+ * Sends IMU samples in the node's protocol (firmware/app/dbc, 4 frames per sample: gyro, accel, mag,
  * sync) on a SocketCAN interface at a fixed frame rate, on an absolute time schedule, in
  * batches of up to --batch frames per system call (sendmmsg), and reports what it sent.
  * The samples are a slow rotation about the vertical axis, stamped with their own
@@ -27,7 +27,7 @@
 #include <unistd.h>
 
 #include "hal.h"
-#include "hal_can.h"
+#include "dbc.h"
 
 #define MAX_BATCH 256
 
@@ -41,7 +41,7 @@ static uint64_t now_ns(void)
 static void usage(FILE *f)
 {
     fprintf(f, "usage: attekf-can-blast -i IFACE --rate FRAMES_PER_S --duration S [--batch N]\n"
-               "Sends IMU frames of hal/can/attekf.dbc at a fixed rate (benchmark sender).\n");
+               "Sends IMU frames of firmware/app/dbc/attekf.dbc at a fixed rate (benchmark sender).\n");
 }
 
 /* Sample k of a slow rotation about z: level, 0.5 rad/s yaw rate, field north and down. */
@@ -69,7 +69,7 @@ int main(int argc, char **argv)
     struct sockaddr_can addr;
     uint64_t sent = 0u, failed = 0u, total, t0, t_end;
     uint32_t k = 0u;
-    hal_can_frame_t pend[HAL_CAN_SAMPLE_FRAMES];
+    hal_frame_t pend[DBC_SAMPLE_FRAMES];
     size_t pend_n = 0u, pend_i = 0u;
     static struct can_frame cf[MAX_BATCH];
     static struct iovec iov[MAX_BATCH];
@@ -151,7 +151,7 @@ int main(int argc, char **argv)
             if (pend_i == pend_n) {
                 hal_sample_t s;
                 make_sample(k++, rate / 4.0, &s);
-                pend_n = hal_can_encode_sample(&s, pend);
+                pend_n = dbc_encode_sample(&s, pend);
                 pend_i = 0u;
             }
             memset(&cf[j], 0, sizeof(cf[j]));

@@ -5,49 +5,72 @@
 
 #include <string.h>
 
-void hal_virtual_init(hal_virtual_t *v, hal_can_frame_t *frames, size_t frames_cap,
-                      hal_sample_t *samples, size_t samples_cap)
+void hal_virtual_init(hal_virtual_t *v, hal_frame_t *frames, size_t frames_cap, hal_sample_t *samples,
+                      size_t samples_cap, hal_line_t *lines, size_t lines_cap)
 {
     memset(v, 0, sizeof(*v));
-    hal_can_rx_init(&v->rx);
-    hal_can_tx_init(&v->tx);
     v->frames = frames;
     v->frames_cap = (frames != NULL) ? frames_cap : 0u;
     v->samples = samples;
     v->samples_cap = (samples != NULL) ? samples_cap : 0u;
+    v->lines = lines;
+    v->lines_cap = (lines != NULL) ? lines_cap : 0u;
     v->link_up = 1u;
 }
 
-void hal_virtual_set_sinks(hal_virtual_t *v, hal_virtual_output_fn on_output,
-                           hal_virtual_frame_fn on_frame, hal_virtual_report_fn on_report,
-                           void *user)
+void hal_virtual_set_sinks(hal_virtual_t *v, hal_virtual_frame_fn on_frame, hal_virtual_line_fn on_line,
+                           hal_virtual_log_fn on_log, void *user)
 {
-    v->on_output = on_output;
     v->on_frame = on_frame;
-    v->on_report = on_report;
+    v->on_line = on_line;
+    v->on_log = on_log;
     v->user = user;
 }
 
-hal_status_t hal_virtual_push_frame(hal_virtual_t *v, const hal_can_frame_t *frame)
+static hal_status_t full(hal_virtual_t *v)
+{
+    hal_count(&v->stats.rx_overflow);
+    return HAL_ERR_FULL;
+}
+
+hal_status_t hal_virtual_push_frame(hal_virtual_t *v, const hal_frame_t *frame)
 {
     if (v->frames_n == v->frames_cap) {
-        hal_count(&v->counters[HAL_CNT_RX_OVERFLOW]);
-        return HAL_ERR_FULL;
+        return full(v);
     }
     v->frames[(v->frames_head + v->frames_n) % v->frames_cap] = *frame;
     ++v->frames_n;
-    v->flushed = 0u;
     return HAL_OK;
 }
 
 hal_status_t hal_virtual_push_sample(hal_virtual_t *v, const hal_sample_t *sample)
 {
     if (v->samples_n == v->samples_cap) {
-        hal_count(&v->counters[HAL_CNT_RX_OVERFLOW]);
-        return HAL_ERR_FULL;
+        return full(v);
     }
     v->samples[(v->samples_head + v->samples_n) % v->samples_cap] = *sample;
     ++v->samples_n;
+    return HAL_OK;
+}
+
+hal_status_t hal_virtual_push_line(hal_virtual_t *v, uint64_t t_us, const char *text)
+{
+    hal_line_t *l;
+    size_t n;
+    if (text == NULL) {
+        return HAL_ERR_ARG;
+    }
+    n = strlen(text);
+    if (n >= HAL_LINE_MAX) {
+        return HAL_ERR_ARG;
+    }
+    if (v->lines_n == v->lines_cap) {
+        return full(v);
+    }
+    l = &v->lines[(v->lines_head + v->lines_n) % v->lines_cap];
+    l->t_us = t_us;
+    memcpy(l->text, text, n + 1u);
+    ++v->lines_n;
     return HAL_OK;
 }
 
@@ -58,7 +81,7 @@ void hal_virtual_end(hal_virtual_t *v) { v->ended = 1u; }
 void hal_virtual_set_link(hal_virtual_t *v, int up)
 {
     if (!up && v->link_up) {
-        hal_count(&v->counters[HAL_CNT_LINK_DOWN]);
+        hal_count(&v->stats.link_down);
         v->down_reported = 0u;
     }
     v->link_up = up ? 1u : 0u;
@@ -77,18 +100,33 @@ void hal_virtual_set_clock(hal_virtual_t *v, uint64_t t_us)
 
 static uint64_t op_now(void *ctx) { return ((const hal_virtual_t *)ctx)->now_us; }
 
-static void advance_clock(hal_virtual_t *v, uint64_t t)
+/* The queue whose head is due first: 0 frames, 1 samples, 2 lines, -1 none. */
+static int next_queue(const hal_virtual_t *v, uint64_t *t)
 {
-    if (t > v->now_us) {
-        v->now_us = t;
+    int best = -1;
+    *t = UINT64_MAX;
+    if (v->frames_n > 0u) {
+        best = 0;
+        *t = v->frames[v->frames_head].t_us;
     }
+    if (v->samples_n > 0u && v->samples[v->samples_head].rx_us < *t) {
+        best = 1;
+        *t = v->samples[v->samples_head].rx_us;
+    }
+    if (v->lines_n > 0u && v->lines[v->lines_head].t_us < *t) {
+        best = 2;
+        *t = v->lines[v->lines_head].t_us;
+    }
+    return best;
 }
 
-static hal_status_t op_read(void *ctx, hal_sample_t *out, uint32_t timeout_us)
+static hal_status_t op_receive(void *ctx, hal_input_t *in, uint32_t timeout_us)
 {
     hal_virtual_t *v = (hal_virtual_t *)ctx;
     const uint64_t deadline = v->now_us + timeout_us;
-    if (out == NULL) {
+    uint64_t t;
+    int q;
+    if (in == NULL) {
         return HAL_ERR_ARG;
     }
     if (!v->link_up) {
@@ -96,95 +134,96 @@ static hal_status_t op_read(void *ctx, hal_sample_t *out, uint32_t timeout_us)
             v->down_reported = 1u;
             return HAL_ERR_LINK_DOWN;
         }
-        /* Nothing arrives while the link is down; time passes. */
-        v->now_us = deadline;
+        v->now_us = deadline; /* nothing arrives while the link is down; time passes */
         return HAL_EMPTY;
     }
-    for (;;) {
-        const int have_f = v->frames_n > 0u;
-        const int have_s = v->samples_n > 0u;
-        const uint64_t tf = have_f ? v->frames[v->frames_head].t_us : UINT64_MAX;
-        const uint64_t ts = have_s ? v->samples[v->samples_head].rx_us : UINT64_MAX;
-        if (hal_can_rx_pop(&v->rx, out)) {
-            return HAL_OK;
-        }
-        if (have_s && ts <= tf && ts <= deadline) {
-            advance_clock(v, ts);
-            *out = v->samples[v->samples_head];
-            v->samples_head = (v->samples_head + 1u) % v->samples_cap;
-            --v->samples_n;
-            return HAL_OK;
-        }
-        if (have_f && tf <= deadline) {
-            advance_clock(v, tf);
-            hal_can_rx_frame(&v->rx, &v->frames[v->frames_head]);
-            v->frames_head = (v->frames_head + 1u) % v->frames_cap;
-            --v->frames_n;
-            continue;
-        }
-        if (!have_f && !have_s && v->ended) {
-            if (!v->flushed) {
-                v->flushed = 1u;
-                hal_can_rx_flush(&v->rx);
-                continue;
-            }
+    q = next_queue(v, &t);
+    if (q < 0) {
+        if (v->ended) {
             return HAL_END;
         }
         v->now_us = deadline;
         return HAL_EMPTY;
     }
-}
-
-static hal_status_t op_publish(void *ctx, const hal_output_t *out)
-{
-    hal_virtual_t *v = (hal_virtual_t *)ctx;
-    hal_can_frame_t frames[HAL_CAN_MAX_OUT_FRAMES];
-    size_t n, i;
-    if (out == NULL) {
-        return HAL_ERR_ARG;
+    if (t > deadline) {
+        v->now_us = deadline;
+        return HAL_EMPTY;
     }
-    n = hal_can_encode_output(&v->tx, out, frames);
-    if (!v->link_up) {
-        hal_count_n(&v->counters[HAL_CNT_TX_ERRORS], (uint32_t)n);
-        return HAL_ERR_LINK_DOWN;
+    if (t > v->now_us) {
+        v->now_us = t;
     }
-    if (v->tx_fail) {
-        hal_count_n(&v->counters[HAL_CNT_TX_ERRORS], (uint32_t)n);
-        return HAL_ERR_IO;
+    if (q == 0) {
+        in->kind = HAL_IN_FRAME;
+        in->u.frame = v->frames[v->frames_head];
+        v->frames_head = (v->frames_head + 1u) % v->frames_cap;
+        --v->frames_n;
+    } else if (q == 1) {
+        in->kind = HAL_IN_SAMPLE;
+        in->u.sample = v->samples[v->samples_head];
+        v->samples_head = (v->samples_head + 1u) % v->samples_cap;
+        --v->samples_n;
+    } else {
+        in->kind = HAL_IN_LINE;
+        in->u.line = v->lines[v->lines_head];
+        v->lines_head = (v->lines_head + 1u) % v->lines_cap;
+        --v->lines_n;
     }
-    if (v->on_output != NULL) {
-        v->on_output(v->user, out);
-    }
-    for (i = 0; i < n; ++i) {
-        frames[i].t_us = v->now_us;
-        if (v->on_frame != NULL) {
-            v->on_frame(v->user, &frames[i]);
-        }
-    }
-    hal_count_n(&v->counters[HAL_CNT_TX_FRAMES], (uint32_t)n);
+    hal_count(&v->stats.rx_frames);
     return HAL_OK;
 }
 
-static void op_counters(void *ctx, uint32_t counters[HAL_CNT_COUNT])
+/* The link as a send sees it: HAL_OK, or the failure (counted for n items). */
+static hal_status_t can_send(hal_virtual_t *v, size_t n)
 {
-    const hal_virtual_t *v = (const hal_virtual_t *)ctx;
-    int i;
-    for (i = HAL_CNT_LINK_FIRST; i < HAL_CNT_LINK_END; ++i) {
-        counters[i] = v->counters[i];
+    if (!v->link_up || v->tx_fail) {
+        hal_count_n(&v->stats.tx_errors, (uint32_t)n);
+        return v->link_up ? HAL_ERR_IO : HAL_ERR_LINK_DOWN;
     }
-    hal_can_rx_add_counters(&v->rx, counters);
+    hal_count_n(&v->stats.tx_frames, (uint32_t)n);
+    return HAL_OK;
 }
 
-static void op_report(void *ctx, hal_level_t level, hal_event_t event, int32_t detail)
+static hal_status_t op_send_frames(void *ctx, const hal_frame_t *frames, size_t n)
+{
+    hal_virtual_t *v = (hal_virtual_t *)ctx;
+    hal_status_t st;
+    size_t i;
+    if (frames == NULL && n > 0u) {
+        return HAL_ERR_ARG;
+    }
+    st = can_send(v, n);
+    for (i = 0; st == HAL_OK && i < n; ++i) {
+        if (v->on_frame != NULL) {
+            hal_frame_t f = frames[i];
+            f.t_us = v->now_us; /* sent now */
+            v->on_frame(v->user, &f);
+        }
+    }
+    return st;
+}
+
+static hal_status_t op_write_line(void *ctx, const char *text)
+{
+    hal_virtual_t *v = (hal_virtual_t *)ctx;
+    const hal_status_t st = (text == NULL) ? HAL_ERR_ARG : can_send(v, 1u);
+    if (st == HAL_OK && v->on_line != NULL) {
+        v->on_line(v->user, text);
+    }
+    return st;
+}
+
+static void op_stats(void *ctx, hal_link_stats_t *s) { *s = ((const hal_virtual_t *)ctx)->stats; }
+
+static void op_log(void *ctx, hal_level_t level, const char *event, int32_t detail)
 {
     const hal_virtual_t *v = (const hal_virtual_t *)ctx;
-    if (v->on_report != NULL) {
-        v->on_report(v->user, level, event, detail);
+    if (v->on_log != NULL) {
+        v->on_log(v->user, level, event, detail);
     }
 }
 
 static const hal_ops_t virtual_ops = {
-    op_now, op_read, op_publish, op_counters, op_report,
+    op_now, op_receive, op_send_frames, op_write_line, op_stats, op_log,
 };
 
 void hal_virtual_bind(hal_virtual_t *v, hal_t *hal)

@@ -1,6 +1,7 @@
 """The node's CAN protocol on the host side, from the same DBC as the C code.
 
-``hal/can/attekf.dbc`` is the single source of truth of the wire format (docs/can_protocol.md).
+``firmware/app/dbc/attekf.dbc`` is the single source of truth of the wire format
+(docs/can_protocol.md).
 This module
 
 * loads it with cantools (:func:`database`);
@@ -13,7 +14,7 @@ This module
 * generates the C pack/unpack code (``cantools generate_c_source``) and the tables of
   docs/can_protocol.md, and checks that the committed ones are current::
 
-      python -m attekf.canproto generate     # rewrite hal/can/canmsg_gen.[ch] and the doc tables
+      python -m attekf.canproto generate     # rewrite firmware/app/dbc/canmsg_gen.[ch] and the doc tables
       python -m attekf.canproto check        # exit 1 if either is stale
 """
 
@@ -34,29 +35,36 @@ import numpy as np
 # Where the DBC is
 # ---------------------------------------------------------------------------------------------
 REPO_ROOT = Path(__file__).resolve().parents[2]
-DBC_RELPATH = Path("hal/can/attekf.dbc")
+DBC_RELPATH = Path("firmware/app/dbc/attekf.dbc")
 C_DATABASE_NAME = "canmsg"            # prefix canmsg_ of the generated names
-C_FILE_STEM = C_DATABASE_NAME + "_gen"  # -> hal/can/canmsg_gen.c, canmsg_gen.h (generated code: *_gen)
+C_FILE_STEM = C_DATABASE_NAME + "_gen"  # -> firmware/app/dbc/canmsg_gen.c, .h (generated code: *_gen)
 C_OPTIONS = ("--use-float", "--use-round")  # float-only target, rounding like Python's encoder
 DOC_RELPATH = Path("docs/can_protocol.md")
-DOC_BEGIN = "<!-- BEGIN GENERATED FROM hal/can/attekf.dbc (python -m attekf.canproto generate) -->"
+DOC_BEGIN = "<!-- BEGIN GENERATED FROM firmware/app/dbc/attekf.dbc (python -m attekf.canproto generate) -->"
+# The C headers whose bit definitions the DBC's status signals and value tables must match.
+ATT_H = Path("firmware/att/att.h")
+APP_MSG_H = Path("firmware/app/app_msg.h")
 DOC_END = "<!-- END GENERATED -->"
 
-# Sensor bits (hal.h HAL_HAS_*)
+# Sensor bits (hal/include/hal.h HAL_HAS_*)
 HAS_GYRO, HAS_ACCEL, HAS_MAG = 1, 2, 4
 
-# hal_counter_id_t order (hal/include/hal.h); the ATT_COUNTERS pages use these indices.
+# app_counter_id_t order (firmware/app/app_msg.h); the ATT_COUNTERS pages use these indices
+# (`check` compares them with the DBC's value table of Page).
 COUNTER_NAMES = (
-    "rx_frames", "unknown_id", "bad_dlc", "duplicate", "late", "incomplete", "discarded",
+    "rx_frames", "foreign", "bad_dlc", "duplicate", "late", "incomplete", "discarded",
     "rx_overflow", "link_down", "tx_frames", "tx_errors", "samples", "gaps", "missing",
     "stale", "time_errors", "resync", "saturated", "ekf_rejected", "realign", "outputs",
+    "transfer_errors", "requests", "refused",
 )
 
-# ATT_STATUS bit signals -> hal.h HAL_FLAG_* bit values
+# ATT_STATUS bit signals -> APP_FLAG_* bit values of firmware/app/app_msg.h (`check` compares
+# them with the header and with the signals' positions in the DBC)
 STATUS_BITS = {
     "Aligned": 1 << 0, "Stale": 1 << 1, "Gap": 1 << 2, "InSaturated": 1 << 3,
     "OutSaturated": 1 << 4, "LinkError": 1 << 5, "FrameError": 1 << 6, "Incomplete": 1 << 7,
     "EkfReject": 1 << 8, "TimeError": 1 << 9, "Restarted": 1 << 10, "Heartbeat": 1 << 11,
+    "ConfigPending": 1 << 12,
 }
 
 
@@ -66,7 +74,7 @@ class ProtocolError(Exception):
 
 def dbc_path() -> Path:
     """The DBC: $ATTEKF_DBC if set, else the installed package's copy (attekf/data/), else
-    hal/can/attekf.dbc of this source tree."""
+    firmware/app/dbc/attekf.dbc of this source tree."""
     env = os.environ.get("ATTEKF_DBC")
     packaged = Path(__file__).resolve().parent / "data" / "attekf.dbc"
     p = Path(env) if env else packaged if packaged.is_file() else REPO_ROOT / DBC_RELPATH
@@ -240,7 +248,7 @@ def encode_samples(t_s: np.ndarray, gyr: np.ndarray, acc: Optional[np.ndarray] =
 # Decoding
 # ---------------------------------------------------------------------------------------------
 def status_flags(decoded: Dict[str, object]) -> int:
-    """HAL_FLAG_* word from a decoded ATT_STATUS."""
+    """APP_FLAG_* word (firmware/app/app_msg.h) from a decoded ATT_STATUS."""
     return sum(bit for name, bit in STATUS_BITS.items() if int(decoded[name]))
 
 
@@ -253,7 +261,7 @@ class OutputRow:
     euler: Tuple[float, float, float]
     rates: Tuple[float, float, float]
     sigma: Tuple[float, float, float]
-    flags: int                     # HAL_FLAG_*
+    flags: int                     # APP_FLAG_*
     att_flags: int                 # ATT_FLAG_*
 
 
@@ -322,7 +330,7 @@ class InputSample:
 
 class InputDecoder:
     """Turns IMU input frames back into samples (a sample ends with its IMU_SYNC). For recording
-    and checking what was on the bus, not the node's robust assembly (hal/can/hal_can_rx.c)."""
+    and checking what was on the bus, not the node's robust assembly (firmware/app/dbc/dbc_rx.c)."""
 
     def __init__(self) -> None:
         self.db = database()
@@ -403,7 +411,7 @@ def generate_c() -> Dict[str, str]:
                               node_name=None, use_round=True)
 
     def fix(text: str) -> str:
-        return _STAMP.sub(r"\1 from hal/can/attekf.dbc (python -m attekf.canproto generate).", text, count=1)
+        return _STAMP.sub(r"\1 from firmware/app/dbc/attekf.dbc (python -m attekf.canproto generate).", text, count=1)
     return {C_FILE_STEM + ".h": fix(h), C_FILE_STEM + ".c": fix(c)}
 
 
@@ -447,8 +455,43 @@ def _doc_with_tables(text: str) -> str:
     return text[:a] + doc_tables() + text[b + len(DOC_END):]
 
 
+def _camel(upper: str) -> str:
+    """FRAME_ERROR -> FrameError."""
+    return "".join(w.capitalize() for w in upper.split("_"))
+
+
+def header_mismatches(root: Path) -> List[str]:
+    """Where the DBC disagrees with the C headers that define the same bits: ATT_STATUS's bit
+    signals with APP_FLAG_* (firmware/app/app_msg.h) and STATUS_BITS, AttFlags' value table with
+    ATT_FLAG_* (firmware/att/att.h), the ATT_COUNTERS pages with APP_COUNTERS (app_msg.h) and
+    COUNTER_NAMES. One line per disagreement."""
+    out: List[str] = []
+    db = database()
+    status = db.get_message_by_name("ATT_STATUS")
+    app_h = (root / APP_MSG_H).read_text(encoding="utf-8")
+    app_flags = {_camel(n): 1 << int(b) for n, b in
+                 re.findall(r"#define APP_FLAG_(\w+)\s+\(1u << (\d+)\)", app_h)}
+    dbc_bits = {sg.name: 1 << sg.start for sg in status.signals if sg.length == 1}
+    if app_flags != dbc_bits:
+        out.append(f"{APP_MSG_H} APP_FLAG_* {app_flags} != ATT_STATUS bit signals {dbc_bits}")
+    if STATUS_BITS != dbc_bits:
+        out.append(f"canproto.STATUS_BITS != ATT_STATUS bit signals {dbc_bits}")
+    att_h = (root / ATT_H).read_text(encoding="utf-8")
+    att_flags = {1 << int(b): n for n, b in re.findall(r"#define ATT_FLAG_(\w+)\s+\(1u << (\d+)\)", att_h)}
+    table = {int(k): str(v) for k, v in status.get_signal_by_name("AttFlags").choices.items()}
+    if att_flags != table:
+        out.append(f"{ATT_H} ATT_FLAG_* {att_flags} != the AttFlags value table {table}")
+    counters = tuple(re.findall(r"X\(\w+, (\w+),", app_h.split("#define APP_COUNTERS(X)")[1].split("#define APP_COUNTER_ENUM")[0]))
+    pages = db.get_message_by_name("ATT_COUNTERS").get_signal_by_name("Page")
+    dbc_pages = tuple(str(pages.choices[k]) for k in sorted(pages.choices))
+    if counters != COUNTER_NAMES or dbc_pages != COUNTER_NAMES or int(pages.maximum) != len(COUNTER_NAMES) - 1:
+        out.append(f"counters: {APP_MSG_H} {counters}, the DBC's Page table {dbc_pages} (max "
+                   f"{pages.maximum}) and canproto.COUNTER_NAMES differ")
+    return out
+
+
 def _targets(root: Path) -> Dict[Path, str]:
-    out = {root / "hal/can" / name: text for name, text in generate_c().items()}
+    out = {root / "firmware/app/dbc" / name: text for name, text in generate_c().items()}
     doc = root / DOC_RELPATH
     if doc.is_file():
         out[doc] = _doc_with_tables(doc.read_text(encoding="utf-8"))
@@ -460,28 +503,32 @@ def _targets(root: Path) -> Dict[Path, str]:
 def main(argv: Optional[List[str]] = None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m attekf.canproto",
-        description="Generate (or check) the C pack/unpack code hal/can/canmsg_gen.[ch] and the tables "
-                    "of docs/can_protocol.md from hal/can/attekf.dbc.")
+        description="Generate (or check) the C pack/unpack code firmware/app/dbc/canmsg_gen.[ch] and the "
+                    "tables of docs/can_protocol.md from firmware/app/dbc/attekf.dbc; check also compares "
+                    "the DBC's status bits, flag and counter tables with the C headers.")
     ap.add_argument("action", choices=("generate", "check"),
                     help="generate: rewrite the files; check: exit 1 if any is not current")
     ap.add_argument("--root", default=str(REPO_ROOT), help="source tree (default: this one)")
     args = ap.parse_args(argv)
     try:
         targets = _targets(Path(args.root))
-    except ProtocolError as e:
+        drift = header_mismatches(Path(args.root))
+    except (ProtocolError, OSError) as e:
         print(f"canproto: {e}", file=sys.stderr)
         return 1
+    for d in drift:
+        print(f"canproto: the DBC and the C headers disagree: {d}", file=sys.stderr)
     stale = [p for p, text in targets.items()
              if not p.is_file() or p.read_text(encoding="utf-8") != text]
     if args.action == "check":
         for p in stale:
             print(f"canproto: {p} is not current: run python -m attekf.canproto generate",
                   file=sys.stderr)
-        return 1 if stale else 0
+        return 1 if stale or drift else 0
     for p in stale:
         p.write_text(targets[p], encoding="utf-8")
         print(f"canproto: wrote {p}")
-    return 0
+    return 1 if drift else 0
 
 
 if __name__ == "__main__":

@@ -76,6 +76,7 @@ static void central(const double x[ATT_N], const double w[3], double dt, int wrt
                     double out[ATT_N])
 {
     double xp[ATT_N], xm[ATT_N], wp[3], wm[3], fp[ATT_N], fm[ATT_N];
+    att_motion_t mo;
     int i;
     for (i = 0; i < ATT_N; ++i) {
         xp[i] = xm[i] = x[i];
@@ -90,8 +91,8 @@ static void central(const double x[ATT_N], const double w[3], double dt, int wrt
         xp[j] += h;
         xm[j] -= h;
     }
-    att_model_transition(xp, wp, dt, NO_CLAMP, fp, NULL);
-    att_model_transition(xm, wm, dt, NO_CLAMP, fm, NULL);
+    att_model_transition(xp, wp, dt, NO_CLAMP, fp, &mo);
+    att_model_transition(xm, wm, dt, NO_CLAMP, fm, &mo);
     for (i = 0; i < ATT_N; ++i) {
         /* the angles come back in [-pi, pi): a difference across the wrap is the short way */
         const int angle = i >= ATT_PHI && i <= ATT_PSI;
@@ -358,6 +359,7 @@ static void random_state(ts_rng_t *r, double x[ATT_N], double dt, double theta_t
 {
     const double half_pi = 1.5707963267948966;
     double xn[ATT_N];
+    att_motion_t mo;
     int i;
     for (i = 0; i < 3; ++i) {
         x[ATT_P + i] = ts_uniform_in(r, -10.0, 10.0);
@@ -371,7 +373,7 @@ static void random_state(ts_rng_t *r, double x[ATT_N], double dt, double theta_t
     if (fabs(x[ATT_THETA]) > half_pi - 1e-6) {
         x[ATT_THETA] = (x[ATT_THETA] > 0.0) ? half_pi - 1e-6 : -(half_pi - 1e-6);
     }
-    att_model_transition(x, NULL, dt, NO_CLAMP, xn, NULL);
+    att_model_transition(x, NULL, dt, NO_CLAMP, xn, &mo);
     *margin0 = half_pi - fabs(x[ATT_THETA]);
     *margin_n = half_pi - fabs(xn[ATT_THETA]);
 }

@@ -14,7 +14,7 @@
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
-static void same_frame(const hal_can_frame_t *a, const hal_can_frame_t *b)
+static void same_frame(const hal_frame_t *a, const hal_frame_t *b)
 {
     FZ_CHECK(a->t_us == b->t_us && a->id == b->id && a->dlc == b->dlc &&
                  memcmp(a->data, b->data, a->dlc) == 0,
@@ -23,7 +23,7 @@ static void same_frame(const hal_can_frame_t *a, const hal_can_frame_t *b)
 
 static void check_line(const char *line)
 {
-    hal_can_frame_t f, g;
+    hal_frame_t f, g;
     char out[96];
     const candump_result_t r = candump_parse_line(line, &f);
     FZ_CHECK(r == CANDUMP_BAD || r == CANDUMP_SKIP || r == CANDUMP_FRAME, "result %d", (int)r);
@@ -56,7 +56,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     }
     {
         fz_t z = {data, size};
-        hal_can_frame_t f, g;
+        hal_frame_t f, g;
         char out[96];
         memset(&f, 0, sizeof(f));
         fz_bytes(&z, &f.t_us, sizeof(f.t_us));

@@ -3,18 +3,19 @@
  * (hal/socketcan/hal_socketcan.c) fed raw messages as recvmmsg would return them, without a
  * kernel CAN socket: hal_socketcan_rx_msg() takes the received struct can_frame bytes,
  * their length and the control messages (SCM_TIMESTAMPNS receive time, SO_RXQ_OVFL drop
- * count; both with fuzzed contents and lengths), and the backend's own read_sample,
- * publish and get_counters operations run on what was buffered.
+ * count; both with fuzzed contents and lengths), and the backend's own receive, send_frames
+ * and get_stats operations run on what was buffered.
  *
  * The backend is "opened" on an interface that does not exist (as when the node starts
  * before its interface): the socket stays closed, the reopen period is long, so no system
  * call but clock_gettime runs while fuzzing.
  *
  * Invariants: no crash or undefined behaviour; a frame is buffered only if it is a classic
- * data frame (16 bytes, no RTR/ERR flag); read_sample returns only the statuses of hal.h;
- * samples well formed (known sensor bits, finite values within the wire range); frame
- * receive times within [0, 2^62) us; rx_frames equals the frames buffered; the overflow
- * counter equals the (saturating) sum of the increments of the kernel's drop count.
+ * data frame (16 bytes, no RTR/ERR flag); receive returns only the statuses of hal.h and
+ * delivers every buffered frame once, in order, with an 11-bit id or a 29-bit id marked
+ * HAL_FRAME_EXT; frame receive times within [0, 2^62) us; rx_frames equals the frames
+ * buffered; the overflow counter equals the (saturating) sum of the increments of the kernel's
+ * drop count.
  */
 #define _GNU_SOURCE 1
 
@@ -30,25 +31,19 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
 static const uint32_t ids[] = {0x100u, 0x101u, 0x102u, 0x103u, 0x103u, 0x7FFu, 0x180u, 0x0u};
 
-static void on_report(void *user, hal_level_t level, hal_event_t event, int32_t detail)
+static void on_report(void *user, hal_level_t level, const char *event, int32_t detail)
 {
     (void)user;
     (void)detail;
     FZ_CHECK((int)level >= HAL_LOG_ERROR && (int)level <= HAL_LOG_DEBUG, "level %d", (int)level);
-    FZ_CHECK((int)event >= 0 && (int)event < HAL_EV_COUNT, "event %d", (int)event);
+    FZ_CHECK(event != NULL && event[0] != '\0', "event name");
 }
 
-static void check_sample(const hal_sample_t *s)
+static void check_frame(const hal_frame_t *f)
 {
-    int i;
-    FZ_CHECK((s->valid & ~HAL_HAS_ALL) == 0u && (s->saturated & ~s->valid) == 0u, "masks 0x%x 0x%x", s->valid,
-             s->saturated);
-    for (i = 0; i < 3; ++i) {
-        FZ_CHECK(isfinite(s->gyro[i]) && fabsf(s->gyro[i]) <= 32.768f, "gyro");
-        FZ_CHECK(isfinite(s->accel[i]) && fabsf(s->accel[i]) <= 163.84f, "accel");
-        FZ_CHECK(isfinite(s->mag[i]) && fabsf(s->mag[i]) <= 1638.4f, "mag");
-    }
-    FZ_CHECK(s->rx_us < ((uint64_t)1 << 62), "rx_us %llu", (unsigned long long)s->rx_us);
+    FZ_CHECK((f->id & HAL_FRAME_EXT) ? (f->id & ~HAL_FRAME_EXT) <= 0x1FFFFFFFu : f->id <= 0x7FFu, "id 0x%x",
+             (unsigned)f->id);
+    FZ_CHECK(f->t_us < ((uint64_t)1 << 62), "t_us %llu", (unsigned long long)f->t_us);
 }
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
@@ -63,7 +58,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 
     cfg.reopen_period_us = UINT32_MAX; /* one reopen attempt per input at most */
     FZ_CHECK(hal_socketcan_open(&c, "fuzz-no-if0", &cfg, on_report, NULL) == HAL_ERR_IO, "open");
-    c.link_up = 1u; /* as after an interface that was up: read_sample just reads the buffer */
+    c.link_up = 1u; /* as after an interface that was up: receive just reads the buffer */
     hal_socketcan_bind(&c, &hal);
 
     while (fz_more(&z) && rounds++ < 64) {
@@ -71,9 +66,10 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         const uint8_t mm = fz_u8(&z);
         int64_t mono_minus_real = -(int64_t)fz_u32(&z) * 1000; /* CLOCK_MONOTONIC behind REALTIME */
         unsigned i;
-        hal_sample_t s;
+        hal_input_t in;
         hal_status_t st;
-        uint32_t cnt[HAL_CNT_COUNT];
+        hal_link_stats_t stats;
+        uint32_t delivered = 0u;
         int polls = 0;
 
         if (mm & 1u) { /* anything */
@@ -146,29 +142,33 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             FZ_CHECK(r == 0 || r == 1, "rx_msg %d", r);
             FZ_CHECK(r == (msg_len == sizeof(cf) && (cf.can_id & (CAN_RTR_FLAG | CAN_ERR_FLAG)) == 0u), "accepted");
             if (r) {
-                const hal_can_frame_t *f = &c.rxbuf[(c.rx_head + c.rx_n - 1u) % HAL_SOCKETCAN_BATCH];
+                const hal_frame_t *f = &c.rxbuf[(c.rx_head + c.rx_n - 1u) % HAL_SOCKETCAN_BATCH];
                 FZ_CHECK(f->t_us < ((uint64_t)1 << 62), "t_us %llu", (unsigned long long)f->t_us);
                 ++buffered;
             }
         }
         do {
-            st = hal.ops->read_sample(hal.ctx, &s, 0u);
-            FZ_CHECK(st == HAL_OK || st == HAL_EMPTY || st == HAL_ERR_LINK_DOWN, "read_sample %d", (int)st);
+            st = hal.ops->receive(hal.ctx, &in, 0u);
+            FZ_CHECK(st == HAL_OK || st == HAL_EMPTY || st == HAL_ERR_LINK_DOWN, "receive %d", (int)st);
             if (st == HAL_OK) {
-                check_sample(&s);
+                FZ_CHECK(in.kind == HAL_IN_FRAME, "kind %u", (unsigned)in.kind);
+                check_frame(&in.u.frame);
+                ++delivered;
             }
         } while (st == HAL_OK && ++polls < 1000);
         FZ_CHECK(c.rx_n == 0u, "frames left in the buffer: %u", c.rx_n);
-        memset(cnt, 0, sizeof(cnt));
-        hal.ops->get_counters(hal.ctx, cnt);
-        FZ_CHECK(cnt[HAL_CNT_RX_FRAMES] == buffered, "rx_frames %u buffered %u", (unsigned)cnt[HAL_CNT_RX_FRAMES],
-                 (unsigned)buffered);
-        FZ_CHECK(cnt[HAL_CNT_RX_OVERFLOW] == (overflow > UINT32_MAX ? UINT32_MAX : (uint32_t)overflow),
-                 "rx_overflow %u expected %llu", (unsigned)cnt[HAL_CNT_RX_OVERFLOW], (unsigned long long)overflow);
-        if (fz_u8(&z) == 0x5Au) { /* publish while the socket is closed: counted, not sent */
-            hal_output_t o;
-            memset(&o, 0, sizeof(o));
-            FZ_CHECK(hal.ops->publish(hal.ctx, &o) == HAL_ERR_LINK_DOWN, "publish");
+        hal.ops->get_stats(hal.ctx, &stats);
+        FZ_CHECK(stats.rx_frames == buffered, "rx_frames %u buffered %u", (unsigned)stats.rx_frames, (unsigned)buffered);
+        FZ_CHECK(delivered <= buffered, "delivered %u of %u", (unsigned)delivered, (unsigned)buffered);
+        FZ_CHECK(stats.rx_overflow == (overflow > UINT32_MAX ? UINT32_MAX : (uint32_t)overflow),
+                 "rx_overflow %u expected %llu", (unsigned)stats.rx_overflow, (unsigned long long)overflow);
+        if (fz_u8(&z) == 0x5Au) { /* send while the socket is closed: counted, not sent */
+            hal_frame_t f;
+            const uint32_t before = stats.tx_errors;
+            memset(&f, 0, sizeof(f));
+            FZ_CHECK(hal.ops->send_frames(hal.ctx, &f, 1u) == HAL_ERR_LINK_DOWN, "send");
+            hal.ops->get_stats(hal.ctx, &stats);
+            FZ_CHECK(stats.tx_errors == before + 1u || before == UINT32_MAX, "tx_errors");
         }
     }
     hal_socketcan_close(&c);

@@ -87,7 +87,7 @@ bounds = att_settings([change("euler_rate_rel", 96, 255), change("bias.walk", 96
 write("fuzz_att", "settings_bounds", att_structured(60, 150, lambda k: (20, -9, 5), lambda k: 20, bounds))
 
 
-# ---- fuzz_hal_can: op 2 = a sample encoded as the IMU does --------------------------------
+# ---- fuzz_can: op 2 = a sample encoded as the IMU does --------------------------------
 def can_sample(mode=0, valid=7, dt_byte=20):
     out = bytearray([2, dt_byte, mode, valid])
     for gv, av, mv in ((0.01, 0.3, 20.0), (-0.02, -0.2, 5.0), (0.03, 9.81, -40.0)):
@@ -95,10 +95,10 @@ def can_sample(mode=0, valid=7, dt_byte=20):
     return out
 
 
-write("fuzz_hal_can", "clean", b"".join(can_sample() for _ in range(40)) + bytes([5, 0]))
-write("fuzz_hal_can", "faults",
+write("fuzz_can", "clean", b"".join(can_sample() for _ in range(40)) + bytes([5, 0]))
+write("fuzz_can", "faults",
       b"".join(can_sample(mode=m) for m in (0, 0x08, 0x20, 0x02, 0x01, 0, 0x28, 0)) * 4 + bytes([6, 0, 5, 0]))
-write("fuzz_hal_can", "raw_frames",
+write("fuzz_can", "raw_frames",
       bytes([0, 10, 0xFF]) + bytes(8) + bytes([0x18, 10, 0x03]) + bytes(8) + bytes([7, 10, 3, 8]) + bytes(8))
 
 

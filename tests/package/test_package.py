@@ -157,7 +157,7 @@ def test_sdist_carries_the_c_sources_and_nothing_of_the_build(built):
     rel = {n[len(top) + 1:] for n in names}
     for needed in ("pyproject.toml", "CMakeLists.txt", "README.md", "native/core_filter.c", "attekf/filter.py",
                    "csrc/CMakeLists.txt", "csrc/firmware/CMakeLists.txt", "csrc/firmware/att/att.c",
-                   "csrc/firmware/ekf/ekf.c", "csrc/hal/can/attekf.dbc", "csrc/cmake/Warnings.cmake"):
+                   "csrc/firmware/ekf/ekf.c", "csrc/firmware/app/dbc/attekf.dbc", "csrc/cmake/Warnings.cmake"):
         assert needed in rel, f"sdist lacks {needed}"
     assert not [n for n in rel if "__pycache__" in n or ".egg-info" in n or n.startswith(("build/", "csrc/build"))]
     assert "requirements.lock" not in rel
@@ -263,7 +263,7 @@ def test_installed_package_uses_its_own_modules_and_dbc(with_extras):
         assert site in Path(p).resolve().parents, f"{p} is not inside the virtual environment"
     # the overrides still win
     env = dict(inst.env, ATTEKF_LIB=str(REPO / "build" / "host" / "host_tools" / "native"),
-               ATTEKF_DBC=str(REPO / "hal" / "can" / "attekf.dbc"))
+               ATTEKF_DBC=str(REPO / "firmware" / "app" / "dbc" / "attekf.dbc"))
     out = inst.run(inst.python, "-c",
                    "import attekf.native as n, attekf.canproto as c; print(n.load('double').path); "
                    "print(c.dbc_path())", env=env).stdout.split()

@@ -1,4 +1,4 @@
-"""attekf.canproto: the host side of the CAN protocol (hal/can/attekf.dbc)."""
+"""attekf.canproto: the host side of the CAN protocol (firmware/app/dbc/attekf.dbc)."""
 
 from __future__ import annotations
 
@@ -128,14 +128,34 @@ def test_generated_files_are_current():
 
 
 def test_check_detects_stale_generated_code(tmp_path):
-    for rel in ("hal/can", "docs"):
+    for rel in ("firmware/app/dbc", "docs", "firmware/att"):
         shutil.copytree(REPO / rel, tmp_path / rel)
+    shutil.copy(REPO / "firmware/app/app_msg.h", tmp_path / "firmware/app/app_msg.h")
     assert cp.main(["check", "--root", str(tmp_path)]) == 0
-    c = tmp_path / "hal/can/canmsg_gen.c"
+    c = tmp_path / "firmware/app/dbc/canmsg_gen.c"
     c.write_text(c.read_text().replace("0.001f", "0.002f", 1))
     assert cp.main(["check", "--root", str(tmp_path)]) == 1
     assert cp.main(["generate", "--root", str(tmp_path)]) == 0
     assert cp.main(["check", "--root", str(tmp_path)]) == 0
+
+
+def test_check_detects_headers_that_drift_from_the_dbc(tmp_path):
+    """A flag bit or counter changed in the C headers without the DBC fails the check."""
+    for rel in ("firmware/app/dbc", "docs", "firmware/att"):
+        shutil.copytree(REPO / rel, tmp_path / rel)
+    app_h = tmp_path / "firmware/app/app_msg.h"
+    text = (REPO / "firmware/app/app_msg.h").read_text()
+    for mutated in (text.replace("APP_FLAG_GAP            (1u << 2)", "APP_FLAG_GAP            (1u << 13)"),
+                    text.replace("X(FOREIGN, foreign,", "X(UNKNOWN_ID, unknown_id,")):
+        assert mutated != text
+        app_h.write_text(mutated)
+        assert cp.main(["check", "--root", str(tmp_path)]) == 1
+    app_h.write_text(text)
+    assert cp.main(["check", "--root", str(tmp_path)]) == 0
+    att_h = tmp_path / "firmware/att/att.h"
+    att_h.write_text(att_h.read_text().replace("#define ATT_FLAG_AT_REST          (1u << 13)",
+                                               "#define ATT_FLAG_AT_REST          (1u << 14)"))
+    assert cp.main(["check", "--root", str(tmp_path)]) == 1
 
 
 def test_missing_dbc_is_a_clear_error(monkeypatch, tmp_path):

@@ -109,3 +109,25 @@ def test_cv_command_rates_options(two_groups, capsys):
     assert "given twice" in capsys.readouterr().err
     assert main(["cv", "--data", str(two_groups), "--decimate", "5000", "-q"]) == 1
     assert capsys.readouterr().err.endswith("01_r.hdf5: 2001 samples, too few to decimate by 5000\n")
+
+
+def test_reported_covariance_settings_stay_at_the_shipped_values_unless_tuned(two_groups):
+    """The reported-covariance settings describe the device and the place: by default every
+    fold keeps the shipped ones (a left-out trial's coverage is theirs); tune_covariance picks
+    the cheapest covering combination per fold instead; values off the grid are refused."""
+    from attekf import bench as B
+    from attekf import native
+    paths = B.find_trials(str(two_groups))
+    grid = [("accel_noise", [0.0414])]
+    shipped = cv.shipped_covariance(native.default_settings("float"), {})
+    fixed = cv.run_cv(paths, str(two_groups), grid, {})
+    assert not fixed["covariance_tuned"]
+    for ch in list(fixed["chosen"].values()) + [fixed["in_sample"]]:
+        assert tuple(ch["reported_covariance"].values()) == shipped
+    tuned = cv.run_cv(paths, str(two_groups), grid, {}, tune_covariance=True)
+    # two clean simulations need no reference terms: tuning takes the cheapest combination
+    assert tuple(tuned["in_sample"]["reported_covariance"].values()) != shipped
+    assert cv.shipped_covariance({}, {"angle_walk_rate": 0.001, "accel_ref_sigma": 0.0,
+                                      "mag_ref_sigma": 0.02}) == (0.001, 0.0, 0.02)
+    with pytest.raises(ValueError, match="mag_ref_sigma = 0.033: not one of"):
+        cv.shipped_covariance(native.default_settings("float"), {"mag_ref_sigma": 0.033})

@@ -48,6 +48,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="score every run at each of these decimations (1 = the native rate) and average")
     p.add_argument("--resample", metavar="HZ1,HZ2,...",
                    help="score every run at each of these rates too (resampled) and average")
+    p.add_argument("--tune-covariance", action="store_true",
+                   help="choose the reported-covariance settings (angle_walk_rate, accel_ref_sigma, "
+                        "mag_ref_sigma) per fold as well, the cheapest covering every training trial; by "
+                        "default they stay at the shipped (or --set) values: they describe the device and "
+                        "the place, which a left-out trial need not share")
     p.add_argument("--no-vqf", action="store_true", help="do not run VQF for the comparison columns")
     p.add_argument("--out", metavar="DIR", help="write cv.txt and cv.json into DIR")
 
@@ -107,6 +112,10 @@ def run(args: argparse.Namespace) -> int:
         for v in vals:
             native._make_settings(lib, dict(base, **{name: v}))
     try:
+        shipped = cv.shipped_covariance(native.default_settings(args.scalar), base)
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+    try:
         paths = bench.find_trials(args.data, args.trials)
     except FileNotFoundError as exc:
         raise InputError(str(exc)) from None
@@ -124,7 +133,8 @@ def run(args: argparse.Namespace) -> int:
                     raise InputError(str(exc)) from None      # names the file
     log = (lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr))
     with bar(None, "cv runs", args.quiet, unit="run") as pb:
-        result = cv.run_cv(paths, args.data, grid, base, args.scalar, args.jobs, pb.update, log, tfs)
+        result = cv.run_cv(paths, args.data, grid, base, args.scalar, args.jobs, pb.update, log, tfs,
+                           args.tune_covariance, shipped)
         vqf = None if args.no_vqf else cv.vqf_scores(paths, args.jobs, pb.update, tfs)
     result["vqf"] = vqf
     git = bench.git_info(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))

@@ -26,7 +26,7 @@ the node's CAN database (attekf.dbc, in the package):
                      t_s (the time of the input sample the output includes, from its IMU_SYNC
                      frame when that was on the bus, else the bus time), roll/pitch/yaw_rad,
                      var_*_rad2 (sigma^2), flags (ATT_FLAG_*), and seq, out_index, node_flags
-                     (HAL_FLAG_*), rate_*_rad_s, rx_time_s (the bus timestamp, all its digits),
+                     (APP_FLAG_*), rate_*_rad_s, rx_time_s (the bus timestamp, all its digits),
                      latency_s (IMU_SYNC -> ATT_EULER on
                      the bus; empty if unknown); angles, variances and rates are empty while
                      the node reports Aligned clear (it sends zeros then);

@@ -110,7 +110,7 @@ def inject_faults(frames: List[Frame], n_samples: int, late_part: int) -> FaultP
 
     out: List[Frame] = []
     moved: Dict[int, List[Frame]] = {}
-    exp = dict(unknown_id=0, bad_dlc=0, duplicate=0, late=0, incomplete=0, discarded=0, gaps=0,
+    exp = dict(foreign=0, bad_dlc=0, duplicate=0, late=0, incomplete=0, discarded=0, gaps=0,
                missing=0)
     L = late_part
     for k in range(n_samples):
@@ -155,7 +155,7 @@ def inject_faults(frames: List[Frame], n_samples: int, late_part: int) -> FaultP
             t = frs[0][0]
             frs[0:0] = [(t, 0x555, b"\x00" * 8, False), (t, 0x7FF, b"\x11" * 3, False),
                         (t, gid, b"\x22" * 8, True)]
-            exp["unknown_id"] += 3
+            exp["foreign"] += 3
         elif k == 450:                     # IMU_SYNC lost: sample discarded (no time)
             frs.remove(kind(frs, sid))
             exp["discarded"] += 1
@@ -166,7 +166,7 @@ def inject_faults(frames: List[Frame], n_samples: int, late_part: int) -> FaultP
             frs.insert(frs.index(g) + 1, g)
             frs.insert(0, (frs[0][0], 0x321, b"\x00" * 8, False))
             exp["duplicate"] += 1
-            exp["unknown_id"] += 1
+            exp["foreign"] += 1
         out.extend(frs)
         out.extend(moved.pop(k, []))
     # A moved frame goes out when its new neighbours do: keep the time stamps monotonic.

@@ -145,7 +145,7 @@ def test_zero_input_frames_lost(hil, name):
     assert s["replay"]["frames"] == n_frames
     assert c["rx_frames"] == n_frames, "frames lost between replay and node"
     assert c["rx_overflow"] == 0
-    for k in ("unknown_id", "bad_dlc", "duplicate", "late", "incomplete", "discarded", "gaps",
+    for k in ("foreign", "bad_dlc", "duplicate", "late", "incomplete", "discarded", "gaps",
               "missing", "time_errors", "resync", "realign", "link_down", "tx_errors", "ekf_rejected"):
         assert c[k] == 0, k
     assert c["samples"] == len(s["rec"])
@@ -207,7 +207,7 @@ def test_latency_measured(hil, name):
 # ---------------------------------------------------------------------------------------------
 # Fault injection
 # ---------------------------------------------------------------------------------------------
-FRAME_LEVEL = ("unknown_id", "bad_dlc", "duplicate", "late")
+FRAME_LEVEL = ("foreign", "bad_dlc", "duplicate", "late")
 
 
 def test_faults_virtual_counts_exactly(hil):
@@ -259,7 +259,7 @@ def test_faults_live_counters_and_flags(hil):
     # every counter reached the bus in the ATT_COUNTERS pages
     for k in FRAME_LEVEL + ("link_down", "gaps"):
         assert s["live_out"].counters[k] == c[k], k
-    report(f"faults: node counted unknown_id={c['unknown_id']} bad_dlc={c['bad_dlc']} duplicate={c['duplicate']} "
+    report(f"faults: node counted foreign={c['foreign']} bad_dlc={c['bad_dlc']} duplicate={c['duplicate']} "
            f"late={c['late']} incomplete={c['incomplete']} discarded={c['discarded']} gaps={c['gaps']} "
            f"missing={c['missing']} link_down={c['link_down']}; replay: {rp['failed']} sends failed "
            f"while vcan0 was down; node received {c['rx_frames']} of the {rp['frames']} frames sent, "

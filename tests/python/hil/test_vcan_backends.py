@@ -102,7 +102,7 @@ def test_round_trip(backend, vcan, node, tmp_path):
     assert (tmp_path / "rx.rc").read_text().strip() == "0", logs
     c = json.loads((tmp_path / "node.json").read_text())["counters"]
     rx = json.loads((tmp_path / "rx.json").read_text())
-    assert c["rx_frames"] == len(frames) + 1 and c["unknown_id"] == 1, (c, logs)
+    assert c["rx_frames"] == len(frames) + 1 and c["foreign"] == 1, (c, logs)
     assert c["samples"] == len(rec) and c["outputs"] == n_out, (c, logs)
     assert rx == {"own": 1, "euler": n_out}, (rx, logs)
     dump = hilutil.read_log(tmp_path / "candump.log")
