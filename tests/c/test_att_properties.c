@@ -311,11 +311,39 @@ static void test_gap_adds_the_integrated_rate_walk(void)
     }
 }
 
+/* The gyroscope's noise is a density: a sample over dt measures the rate with variance
+ * gyro_noise^2 / dt (docs/derivation.md, "Noise densities"). Read back from the update of
+ * each rate's variance, 1 / P+ = 1 / P + 1 / R (a unit row), whatever the innovation. */
+static void test_gyro_noise_is_a_density(void)
+{
+    att_settings_t s = att_default_settings;
+    static att_ekf_t f;
+    ts_sim_t sim;
+    const double dt = 0.01, want = ekf_to_double(s.gyro_noise) * ekf_to_double(s.gyro_noise) / dt;
+    ekf_scalar_t P0[ATT_N * ATT_N], P1[ATT_N * ATT_N], g[3];
+    int i;
+    run_motion(&f, &s, 4.0, 0, &sim);
+    for (i = 0; i < 3; ++i) { /* the rate the filter expects: no innovation, never gated */
+        g[i] = ekf_add(att_state(&f)[ATT_P + i], ekf_add(f.vars.rest.bias[i], f.vars.bias.b[i]));
+    }
+    att_get_covariance(&f, P0);
+    TEST_ASSERT_EQUAL_INT(EKF_OK, att_update_gyro(&f, g, ekf_from_double(dt)));
+    att_get_covariance(&f, P1);
+    for (i = 0; i < 3; ++i) {
+        const int a = ATT_P + i;
+        const double r = 1.0 / (1.0 / ekf_to_double(P1[a * ATT_N + a]) - 1.0 / ekf_to_double(P0[a * ATT_N + a]));
+        printf("gyroscope noise (%s), axis %d: rate variance %.4g -> %.4g, R %.5g, gyro_noise^2 / dt %.5g\n",
+               EKF_SCALAR_NAME, i, ekf_to_double(P0[a * ATT_N + a]), ekf_to_double(P1[a * ATT_N + a]), r, want);
+        TEST_ASSERT_TRUE(fabs(r - want) <= 1e-3 * want);
+    }
+}
+
 int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_accel_stage_is_the_batch_update);
     RUN_TEST(test_remap_transforms_the_reported_covariance);
     RUN_TEST(test_gap_adds_the_integrated_rate_walk);
+    RUN_TEST(test_gyro_noise_is_a_density);
     return UNITY_END();
 }
