@@ -338,6 +338,36 @@ static void test_gyro_noise_is_a_density(void)
     }
 }
 
+/* A saturated gyroscope sample raises each body-rate variance to at least the square of its
+ * largest component (att.h, ATT_GYRO_SATURATED), each by its own deficit: checked with the
+ * roll rate's variance made larger than the others' first. */
+static void test_saturated_gyro_raises_every_rate_variance(void)
+{
+    att_settings_t s = att_default_settings;
+    static att_ekf_t f;
+    ts_sim_t sim;
+    att_sample_t smp;
+    const double full = 10.0; /* rad/s */
+    const double walk = ekf_to_double(s.rate_walk) * ekf_to_double(s.rate_walk) * 0.01;
+    ekf_scalar_t P[ATT_N * ATT_N];
+    int i;
+    run_motion(&f, &s, 4.0, 0, &sim);
+    att_cov_add_var(&f.vars.cov, ATT_P, ekf_from_double(0.5 * full * full));
+    memset(&smp, 0, sizeof smp);
+    smp.dt = EKF_C(0.01);
+    smp.gyro[1] = ekf_from_double(-full);
+    smp.valid = ATT_HAS_GYRO | ATT_GYRO_SATURATED;
+    TEST_ASSERT_FALSE(ekf_status_is_error(att_step(&f, &smp, NULL)));
+    att_get_covariance(&f, P);
+    for (i = 0; i < 3; ++i) {
+        const double v = ekf_to_double(P[(ATT_P + i) * ATT_N + ATT_P + i]);
+        printf("saturated gyroscope (%s): rate %d variance %.8g, at least %.4g\n", EKF_SCALAR_NAME, i, v, full * full);
+        /* every variance was below full^2: raised to it, not beyond (but for the step's own
+         * rate walk, rate_walk^2 dt) */
+        TEST_ASSERT_TRUE(v >= (1.0 - 1e-4) * full * full && v <= (1.0 + 1e-4) * full * full + walk);
+    }
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -345,5 +375,6 @@ int main(void)
     RUN_TEST(test_remap_transforms_the_reported_covariance);
     RUN_TEST(test_gap_adds_the_integrated_rate_walk);
     RUN_TEST(test_gyro_noise_is_a_density);
+    RUN_TEST(test_saturated_gyro_raises_every_rate_variance);
     return UNITY_END();
 }
