@@ -7,7 +7,12 @@
  *     ("Accelerometer": noise isotropic across the components);
  *   - the pitch remap (phi, theta, psi) -> (phi + pi, pi - theta, psi + pi) is the same
  *     rotation, and the angle errors map as (d phi, -d theta, d psi): the reported angle
- *     covariance, the offset's share included, transforms with J = diag(1, -1, 1).
+ *     covariance, the offset's share included, transforms with J = diag(1, -1, 1);
+ *   - a gap (a step over 1.5 sample intervals) adds the integrated rate walk
+ *     rate_walk^2 e^3 / 3 to the angle variances, a shorter step nothing of the kind;
+ *   - the gyroscope noise is a density: R = gyro_noise^2 / dt;
+ *   - a saturated gyroscope sample raises each body-rate variance to the square of its
+ *     largest component, each by its own deficit.
  *
  * Built for float, double and fixed point. Found missing by scripts/mutate.py
  * (docs/reliability.md, "Mutation testing").
