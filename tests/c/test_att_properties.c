@@ -12,7 +12,9 @@
  *     rate_walk^2 e^3 / 3 to the angle variances, a shorter step nothing of the kind;
  *   - the gyroscope noise is a density: R = gyro_noise^2 / dt;
  *   - a saturated gyroscope sample raises each body-rate variance to the square of its
- *     largest component, each by its own deficit.
+ *     largest component, each by its own deficit;
+ *   - the heading's noise: a density, widened by tan^2(dip) times the tilt variance of the
+ *     linear acceleration and by the field's norm and dip errors.
  *
  * Built for float, double and fixed point. Found missing by scripts/mutate.py
  * (docs/reliability.md, "Mutation testing").
@@ -373,6 +375,43 @@ static void test_saturated_gyro_raises_every_rate_variance(void)
     }
 }
 
+/* The heading's noise (docs/derivation.md, "Magnetometer"): a density, widened by the tilt
+ * error linear acceleration causes, which moves the levelled heading by about tan(dip) times
+ * it, and by the field's norm and dip errors:
+ *   R = (mag_heading_noise^2 + tan^2(dip) accel_dev_var accel_adapt_weight / g^2) / dt
+ *       (1 + (norm error / mag_norm_band)^2 + (dip error / mag_dip_band)^2).
+ * Read back from the heading variance's update (a unit row), with a linear-acceleration
+ * variance set that makes the dip term several times the plain noise. */
+static void test_heading_noise(void)
+{
+    att_settings_t s = att_default_settings;
+    static att_ekf_t f;
+    ts_sim_t sim;
+    att_sample_t smp;
+    const double dt = 0.01, dev_var = 10.0; /* (m/s^2)^2 */
+    ekf_scalar_t P0[ATT_N * ATT_N], P1[ATT_N * ATT_N];
+    double w[3], hn, tan2, g, kn, kd, want, r;
+    run_motion(&f, &s, 4.0, 0, &sim);
+    wander(4.0, w);
+    ts_sim_step(&sim, w, NULL, &smp);
+    f.vars.accel_dev_var = ekf_from_double(dev_var);
+    att_get_covariance(&f, P0);
+    TEST_ASSERT_EQUAL_INT(EKF_OK, att_update_mag(&f, smp.mag, ekf_from_double(dt)));
+    att_get_covariance(&f, P1);
+    hn = ekf_to_double(s.mag_heading_noise);
+    tan2 = tan(ekf_to_double(f.vars.mag_ref_dip)) * tan(ekf_to_double(f.vars.mag_ref_dip));
+    g = ekf_to_double(s.gravity);
+    kn = ekf_to_double(att_diag(&f)->mag_norm_error) / ekf_to_double(s.mag_norm_band);
+    kd = ekf_to_double(att_diag(&f)->mag_dip_error) / ekf_to_double(s.mag_dip_band);
+    want = (hn * hn + tan2 * dev_var * ekf_to_double(s.accel_adapt_weight) / (g * g)) / dt * (1.0 + kn * kn + kd * kd);
+    r = 1.0 / (1.0 / ekf_to_double(P1[ATT_PSI * ATT_N + ATT_PSI]) - 1.0 / ekf_to_double(P0[ATT_PSI * ATT_N + ATT_PSI]));
+    printf("heading noise (%s): dip %.1f deg, R %.5g, expected %.5g (plain noise alone %.5g)\n", EKF_SCALAR_NAME,
+           ekf_to_double(f.vars.mag_ref_dip) / DEG, r, want, hn * hn / dt);
+    TEST_ASSERT_TRUE(tan2 > 1.0);                       /* tan^2 and tan differ */
+    TEST_ASSERT_TRUE(want > 3.0 * hn * hn / dt);       /* the dip term matters */
+    TEST_ASSERT_TRUE(fabs(r - want) <= 6e-4 * want);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -381,5 +420,6 @@ int main(void)
     RUN_TEST(test_gap_adds_the_integrated_rate_walk);
     RUN_TEST(test_gyro_noise_is_a_density);
     RUN_TEST(test_saturated_gyro_raises_every_rate_variance);
+    RUN_TEST(test_heading_noise);
     return UNITY_END();
 }
