@@ -14,7 +14,8 @@
  *   - a saturated gyroscope sample raises each body-rate variance to the square of its
  *     largest component, each by its own deficit;
  *   - the heading's noise: a density, widened by tan^2(dip) times the tilt variance of the
- *     linear acceleration and by the field's norm and dip errors.
+ *     linear acceleration and by the field's norm and dip errors;
+ *   - the heading innovation is wrapped: held at a heading of 180 deg no sample is gated.
  *
  * Built for float, double and fixed point. Found missing by scripts/mutate.py
  * (docs/reliability.md, "Mutation testing").
@@ -412,6 +413,39 @@ static void test_heading_noise(void)
     TEST_ASSERT_TRUE(fabs(r - want) <= 6e-4 * want);
 }
 
+/* Headings either side of +-180 deg are 2 deg apart, not 358: held still at a heading of
+ * 180 deg, the estimate and the measured heading fall either side of it from sample to
+ * sample, and the heading innovation must stay small (wrapped into [-pi, pi)), so almost no
+ * sample is gated and the heading stays right. */
+static void test_heading_across_180_deg(void)
+{
+    att_settings_t s = att_default_settings;
+    static att_ekf_t f;
+    ts_sim_t sim;
+    ts_sim_cfg_t cfg;
+    att_sample_t smp;
+    const double w[3] = {0.0, 0.0, 0.0};
+    double e[3], err;
+    uint32_t fused, gated;
+    int k;
+    ts_sim_default(&cfg);
+    ts_sim_init(&sim, &cfg, 5, 0.1, -0.05, 3.14159265358979323846);
+    TEST_ASSERT_EQUAL_INT(EKF_OK, att_init(&f, &s));
+    for (k = 0; k < (int)(20.0 / cfg.dt); ++k) {
+        ts_sim_step(&sim, w, NULL, &smp);
+        TEST_ASSERT_FALSE(ekf_status_is_error(att_step(&f, &smp, NULL)));
+    }
+    ts_sim_euler(&sim, e);
+    err = fabs(remainder(ekf_to_double(att_state(&f)[ATT_PSI]) - e[2], 2.0 * 3.14159265358979323846));
+    fused = att_diag(&f)->mag_fused;
+    gated = att_diag(&f)->mag_gated;
+    printf("heading at 180 deg (%s): %u headings fused, %u gated, heading error %.3f deg\n", EKF_SCALAR_NAME,
+           (unsigned)fused, (unsigned)gated, err / DEG);
+    TEST_ASSERT_TRUE(fused > 1000u);
+    TEST_ASSERT_TRUE(gated <= fused / 100u);
+    TEST_ASSERT_TRUE(err < 0.03 * DEG);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -421,5 +455,6 @@ int main(void)
     RUN_TEST(test_gyro_noise_is_a_density);
     RUN_TEST(test_saturated_gyro_raises_every_rate_variance);
     RUN_TEST(test_heading_noise);
+    RUN_TEST(test_heading_across_180_deg);
     return UNITY_END();
 }
