@@ -15,7 +15,8 @@
  *     largest component, each by its own deficit;
  *   - the heading's noise: a density, widened by tan^2(dip) times the tilt variance of the
  *     linear acceleration and by the field's norm and dip errors;
- *   - the heading innovation is wrapped: held at a heading of 180 deg no sample is gated.
+ *   - the heading innovation is wrapped: held at a heading of 180 deg no sample is gated;
+ *   - a turned field is gated, then after mag_reset_time the heading reset to it, counted once.
  *
  * Built for float, double and fixed point. Found missing by scripts/mutate.py
  * (docs/reliability.md, "Mutation testing").
@@ -446,6 +447,42 @@ static void test_heading_across_180_deg(void)
     TEST_ASSERT_TRUE(err < 0.03 * DEG);
 }
 
+/* A field turned 60 deg (as by a magnet that keeps its norm and dip) gates every heading;
+ * after mag_reset_time gated (the tilt confirmed by the accelerometer, held still), the
+ * heading is reset to the magnetic one and the reset counted, once. */
+static void test_heading_reset(void)
+{
+    att_settings_t s = att_default_settings;
+    static att_ekf_t f;
+    ts_sim_t sim;
+    ts_sim_cfg_t cfg;
+    att_sample_t smp;
+    const double w[3] = {0.0, 0.0, 0.0}, turn = 60.0 * DEG;
+    double e[3], off;
+    uint32_t before, resets;
+    int k;
+    ts_sim_default(&cfg);
+    ts_sim_init(&sim, &cfg, 9, 0.1, -0.05, 0.7);
+    TEST_ASSERT_EQUAL_INT(EKF_OK, att_init(&f, &s));
+    for (k = 0; k < (int)(10.0 / cfg.dt); ++k) {
+        ts_sim_step(&sim, w, NULL, &smp);
+        TEST_ASSERT_FALSE(ekf_status_is_error(att_step(&f, &smp, NULL)));
+    }
+    before = att_diag(&f)->heading_resets;
+    f.settings.mag_declination = ekf_from_double(turn); /* the same as the field turned by -turn */
+    for (k = 0; k < (int)((ekf_to_double(s.mag_reset_time) + 2.0) / cfg.dt); ++k) {
+        ts_sim_step(&sim, w, NULL, &smp);
+        TEST_ASSERT_FALSE(ekf_status_is_error(att_step(&f, &smp, NULL)));
+    }
+    ts_sim_euler(&sim, e);
+    off = fabs(remainder(ekf_to_double(att_state(&f)[ATT_PSI]) - (e[2] - turn), 2.0 * 3.14159265358979323846));
+    resets = att_diag(&f)->heading_resets - before;
+    printf("field turned 60 deg (%s): %u heading reset(s), heading then %.2f deg from the field's\n", EKF_SCALAR_NAME,
+           (unsigned)resets, off / DEG);
+    TEST_ASSERT_EQUAL_UINT32(1u, resets);
+    TEST_ASSERT_TRUE(off < 0.75 * DEG);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -456,5 +493,6 @@ int main(void)
     RUN_TEST(test_saturated_gyro_raises_every_rate_variance);
     RUN_TEST(test_heading_noise);
     RUN_TEST(test_heading_across_180_deg);
+    RUN_TEST(test_heading_reset);
     return UNITY_END();
 }
