@@ -7,7 +7,8 @@
  *     ("Accelerometer": noise isotropic across the components);
  *   - the pitch remap (phi, theta, psi) -> (phi + pi, pi - theta, psi + pi) is the same
  *     rotation, and the angle errors map as (d phi, -d theta, d psi): the reported angle
- *     covariance, the offset's share included, transforms with J = diag(1, -1, 1);
+ *     covariance, the offset's share included, transforms with J = diag(1, -1, 1), and all
+ *     of P with -1 at the pitch and the pitch rate;
  *   - a gap (a step over 1.5 sample intervals) adds the integrated rate walk
  *     rate_walk^2 e^3 / 3 to the angle variances, a shorter step nothing of the kind;
  *   - the gyroscope noise is a density: R = gyro_noise^2 / dt;
@@ -245,7 +246,8 @@ static void test_remap_transforms_the_reported_covariance(void)
     att_settings_t s = att_default_settings;
     static att_ekf_t f;
     ts_sim_t sim;
-    ekf_scalar_t before[6], after[6], v_max = EKF_C(0);
+    ekf_scalar_t before[6], after[6], v_max = EKF_C(0), P0[ATT_N * ATT_N], P1[ATT_N * ATT_N];
+    double worst_p = 0.0, scale_p = 0.0;
     /* (phi theta), (theta psi) change sign with d theta; the rest keep theirs */
     static const double sign[6] = {1.0, 1.0, 1.0, -1.0, 1.0, -1.0};
     double worst = 0.0, scale = 0.0;
@@ -263,16 +265,28 @@ static void test_remap_transforms_the_reported_covariance(void)
     f.vars.x[ATT_PSI] = ekf_wrap_pi(ekf_add(f.vars.x[ATT_PSI], EKF_PI));
     f.vars.x[ATT_THETAD] = ekf_neg(f.vars.x[ATT_THETAD]);
     att_get_angle_covariance(&f, before);
+    att_get_covariance(&f, P0);
     TEST_ASSERT_EQUAL_INT(1, att_normalise(&f.vars));
     att_get_angle_covariance(&f, after);
+    att_get_covariance(&f, P1);
+    /* and all of P with diag(1, .., -1 at theta and theta-dot, .., 1): the pitch rate's
+     * correlations change sign with the pitch's */
+    for (i = 0; i < ATT_N * ATT_N; ++i) {
+        const int r = i / ATT_N, c = i % ATT_N;
+        const double sr = (r == ATT_THETA || r == ATT_THETAD) ? -1.0 : 1.0;
+        const double sc = (c == ATT_THETA || c == ATT_THETAD) ? -1.0 : 1.0;
+        scale_p = fmax(scale_p, fabs(ekf_to_double(P0[i])));
+        worst_p = fmax(worst_p, fabs(ekf_to_double(P1[i]) - sr * sc * ekf_to_double(P0[i])));
+    }
     for (i = 0; i < 6; ++i) {
         scale = fmax(scale, fabs(ekf_to_double(before[i])));
         worst = fmax(worst, fabs(ekf_to_double(after[i]) - sign[i] * ekf_to_double(before[i])));
     }
-    printf("reported angle covariance through the pitch remap (%s): largest entry %.3g, off J c J by %.3g\n",
-           EKF_SCALAR_NAME, scale, worst);
+    printf("reported angle covariance through the pitch remap (%s): largest entry %.3g, off J c J by %.3g; "
+           "all of P: largest %.3g, off by %.3g\n", EKF_SCALAR_NAME, scale, worst, scale_p, worst_p);
     TEST_ASSERT_TRUE(fabs(ekf_to_double(before[5])) > 1e-3 * scale); /* the sign change is visible */
     TEST_ASSERT_TRUE(worst <= 1e-6 * scale);
+    TEST_ASSERT_TRUE(worst_p <= 1e-6 * scale_p);
 }
 
 /* A step longer than 1.5 sample intervals is a gap: rate_walk^2 e^3 / 3 (e the excess over
