@@ -15,6 +15,7 @@
  *     misses one state shows).
  *   - a P negative along H (0 < S < R) with every new variance positive is refused: the
  *     S >= R check; the measured state's own new variance below var_floor is floored.
+ *   - att_cov_floor_diag never leaves a variance below the floor (fixed point: rounded up).
  *   - the pivots of ekf_cov_is_pd / att_cov_is_pd: a pivot below rel_margin P_jj fails, one
  *     above passes.
  *
@@ -121,14 +122,19 @@ static ekf_status_t generic_update(ekf_scalar_t x[ATT_N], ekf_scalar_t P[NN])
 
 /* One of the build's kernels: att_cov_update_unit (angles = 0) or att_cov_update_angles
  * with h = e_A (angles = 1). */
-static ekf_status_t kernel_update(int angles, ekf_scalar_t x[ATT_N], att_cov_t *c)
+static ekf_status_t kernel_update_floor(int angles, ekf_scalar_t x[ATT_N], att_cov_t *c, double var_floor)
 {
     static const ekf_scalar_t h3[3] = {EKF_C(1), EKF_C(0), EKF_C(0)};
+    const ekf_scalar_t fl = ekf_from_double(var_floor);
     if (angles) {
-        return att_cov_update_angles(c, x, h3, EKF_C(0), ekf_from_double(R_VAR), EKF_C(0), ekf_from_double(FLOOR),
-                                     NULL);
+        return att_cov_update_angles(c, x, h3, EKF_C(0), ekf_from_double(R_VAR), EKF_C(0), fl, NULL);
     }
-    return att_cov_update_unit(c, x, A, EKF_C(0), ekf_from_double(R_VAR), EKF_C(0), ekf_from_double(FLOOR), NULL);
+    return att_cov_update_unit(c, x, A, EKF_C(0), ekf_from_double(R_VAR), EKF_C(0), fl, NULL);
+}
+
+static ekf_status_t kernel_update(int angles, ekf_scalar_t x[ATT_N], att_cov_t *c)
+{
+    return kernel_update_floor(angles, x, c, FLOOR);
 }
 
 static void test_generic_update_threshold(void)
@@ -249,6 +255,41 @@ static void test_definiteness_margin(void)
     TEST_ASSERT_EQUAL_INT(0, att_cov_is_pd(&c, ekf_from_double(margin)));
 }
 
+/* att_cov_floor_diag leaves every variance at or above the floor, exactly in the scalar, for
+ * floors that are not powers of two and variances of every scale (fixed point: the floor is
+ * rounded up, never to nearest, into each state's word). */
+static void test_floor_is_never_undercut(void)
+{
+    /* (the second 1.25 2^-29: 1.25 words of a state of unit scale, where rounding to nearest
+     * would give one) */
+    static const double floors[5] = {1e-9, 2.3283064365386963e-09, 3.3e-9, 7.7e-7, 1.3e-5};
+    ekf_scalar_t P[NN];
+    att_cov_t c;
+    int k, i, low = 0;
+    for (k = 0; k < 5; ++k) {
+        const ekf_scalar_t fl = ekf_from_double(floors[k]);
+        diag_cov(1.0, P);
+        for (i = 0; i < ATT_N; ++i) { /* variances from far above to far below the floor */
+            P[i * ATT_N + i] = ekf_from_double(floors[k] * ldexp(1.0, 12 - 3 * i));
+        }
+        att_cov_from_full(&c, P);
+        TEST_ASSERT_EQUAL_INT(0, att_cov_floor_diag(&c, fl));
+        for (i = 0; i < ATT_N; ++i) {
+            low += (att_cov_get(&c, i, i) < fl);
+        }
+        /* and the update kernels' floor of a new variance (written in the word of a state
+         * whose scale is far above the floor) */
+        for (i = 0; i < 2; ++i) {
+            ekf_scalar_t x[ATT_N] = {0};
+            probe_cov(-0.25 * kernel_tolerance(), ATT_PSI, P);
+            att_cov_from_full(&c, P);
+            TEST_ASSERT_EQUAL_INT(EKF_OK, kernel_update_floor(i, x, &c, floors[k]));
+            low += (att_cov_get(&c, ATT_PSI, ATT_PSI) < fl);
+        }
+    }
+    TEST_ASSERT_EQUAL_INT(0, low);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -258,5 +299,6 @@ int main(void)
     RUN_TEST(test_negative_along_h_is_refused);
     RUN_TEST(test_measured_variance_is_floored);
     RUN_TEST(test_definiteness_margin);
+    RUN_TEST(test_floor_is_never_undercut);
     return UNITY_END();
 }
