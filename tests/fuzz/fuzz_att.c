@@ -14,8 +14,9 @@
  * 0, 6, 7 att_step; 1 att_predict(dt); 2, 3, 4 att_update_gyro / _accel / _mag; 5 att_align
  * (with the magnetometer if ATT_HAS_MAG).
  *
- * Invariants on the settings: att_setting_set accepts every value within a row's range (fixed
- * point: unless its square does not fit) and refuses, changing nothing, every value outside;
+ * Invariants on the settings: att_setting_set accepts every value within a row's range (unless
+ * the scalar cannot use it: a square that underflows or overflows; fixed point: saturates) and
+ * refuses, changing nothing, every value outside;
  * att_settings_check refuses a value outside its row's range; att_init agrees with it.
  * After every call: a refused call (any error status) leaves the whole filter byte for byte
  * as it was except its one error counter (diag.rejected, or diag.numeric for
@@ -96,6 +97,16 @@ static int in_row_range(const att_setting_info_t *r, ekf_scalar_t v)
     return v >= r->lo && v <= r->hi && (r->type != ATT_SETTING_U16 || ekf_from_int((int32_t)ekf_to_double(v)) == v);
 }
 
+/* 1 if att_setting_set may refuse v although it is within its row's range: a value the
+ * build's scalar cannot use (docs/reliability.md, "settings not representable"): in float and
+ * double one whose square underflows to 0 or overflows; in fixed point also one whose square
+ * or a sum with it saturates. */
+static int may_refuse_in_range(ekf_scalar_t v)
+{
+    const ekf_scalar_t q = ekf_sq(v);
+    return EKF_SCALAR_IS_FIXED || (v != EKF_C(0) && !(ekf_isfinite(q) && q > EKF_C(0)));
+}
+
 /* A value within row r's range: at a bound, or log-spaced between positive bounds that span
  * more than a decade, else evenly spaced (a count rounded to a whole number). */
 static ekf_scalar_t value_in_range(fz_t *z, const att_setting_info_t *r, int at_bound)
@@ -126,10 +137,10 @@ static void write_raw(att_settings_t *s, const att_setting_info_t *r, ekf_scalar
 
 /* One change to one row, any row of att_settings_table.h (att_setting_info: a new row is
  * fuzzed without a change here): a value within its range or at one of its bounds through
- * att_setting_set, which must accept it (in float and double every value in range is usable;
- * fixed point may refuse one whose square it cannot hold), or a raw value (the default times
- * 2^k, or anything) written into the field, which att_setting_set must refuse exactly when it
- * is out of range. */
+ * att_setting_set, which must accept it unless the scalar cannot use it (may_refuse_in_range),
+ * or a raw value (the default times 2^k, or anything) written into the field, which
+ * att_setting_set must refuse when it is out of range and accept when it is within (the same
+ * exception). */
 static void fuzz_setting(fz_t *z, att_settings_t *s)
 {
     const size_t i = fz_u8(z) % att_setting_count();
@@ -142,13 +153,9 @@ static void fuzz_setting(fz_t *z, att_settings_t *s)
     if (how < 160u) {
         v = value_in_range(z, r, how >= 96u);
         st = att_setting_set(s, i, v);
-#if defined(EKF_SCALAR_FIXED)
-        FZ_CHECK(st == EKF_OK || (st == EKF_ERR_SETTINGS && memcmp(&copy, s, sizeof copy) == 0),
-                 "att_setting_set(%s, %g): status %d", r->name, ekf_to_double(v), (int)st);
-#else
-        FZ_CHECK(st == EKF_OK, "att_setting_set(%s, %g) within [%g, %g]: status %d", r->name, ekf_to_double(v),
+        FZ_CHECK(st == EKF_OK || (st == EKF_ERR_SETTINGS && may_refuse_in_range(v) && memcmp(&copy, s, sizeof copy) == 0),
+                 "att_setting_set(%s, %g) within [%g, %g]: status %d", r->name, ekf_to_double(v),
                  ekf_to_double(r->lo), ekf_to_double(r->hi), (int)st);
-#endif
         return;
     }
     if (how < 240u) { /* the default times 2^-20 .. 2^19, the sign flipped sometimes */
@@ -163,7 +170,7 @@ static void fuzz_setting(fz_t *z, att_settings_t *s)
         v = ekf_from_int((int32_t)count);
     }
     st = att_setting_set(&copy, i, v);
-    FZ_CHECK((st == EKF_OK) == in_row_range(r, v) || (st == EKF_ERR_SETTINGS && in_row_range(r, v) && EKF_SCALAR_IS_FIXED),
+    FZ_CHECK((st == EKF_OK) == in_row_range(r, v) || (st == EKF_ERR_SETTINGS && in_row_range(r, v) && may_refuse_in_range(v)),
              "att_setting_set(%s, %g): status %d, range [%g, %g]", r->name, ekf_to_double(v), (int)st,
              ekf_to_double(r->lo), ekf_to_double(r->hi));
     write_raw(s, r, v, count);
