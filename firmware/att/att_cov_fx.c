@@ -48,7 +48,9 @@ int32_t att_fx_to_c_any(int64_t v, int sh)
 ekf_scalar_t att_fx_to_q(int64_t v, int sh)
 {
     if (sh > 0) {
-        return (sh >= 63) ? 0 : (v + ((int64_t)1 << (sh - 1))) >> sh;
+        /* rounded half up as (v + 2^(sh-1)) >> sh, without the sum that overflows near
+         * INT64_MAX */
+        return (sh >= 63) ? 0 : (v >> sh) + ((v >> (sh - 1)) & 1);
     }
     if (v == 0 || sh == 0) {
         return v;
