@@ -9,7 +9,9 @@ into [-pi, pi): the errors of the angles whose covariance C the filter reports
 exactly as for the RMSE.
 
     coverage (per angle)  share of the scored samples with |d_angle| <= 3 sqrt(C_angle),
-                          in percent (99.7 for a Gaussian error with the reported variance)
+                          in percent (99.7 for a Gaussian error with the reported variance);
+                          also within 1 and 2 sqrt(C_angle) (68.3 and 95.4 %, COVERAGE_NOMINAL_PCT):
+                          an over-stated variance shows there, where 3 sigma is near 100 % anyway
     mean sigma            mean over the scored samples of sqrt(C_angle), degrees
     NEES / dof            mean over the scored samples of d^T C^-1 d divided by the number of
                           angles d has (1 for a consistent filter); samples within
@@ -32,6 +34,8 @@ import numpy as np
 from . import metrics as M
 
 ANGLES = ("roll", "pitch", "yaw")
+# Share of a Gaussian within k standard deviations, % (erf(k / sqrt 2)), k = 1, 2, 3.
+COVERAGE_NOMINAL_PCT = {k: 100.0 * math.erf(k / math.sqrt(2.0)) for k in (1, 2, 3)}
 NEES_GIMBAL_MARGIN = np.radians(5.0)
 # angle_cov columns: phi phi, theta theta, psi psi, phi theta, phi psi, theta psi
 _PACKED = ((0, 3, 4), (3, 1, 5), (4, 5, 2))
@@ -63,9 +67,9 @@ def consistency(q_est: np.ndarray, q_ref: np.ndarray, var: Optional[np.ndarray] 
                 six_d: bool = False) -> Dict[str, object]:
     """Coverage, mean sigma and NEES (module docstring) of one trial. var: (N, 3) reported
     roll/pitch/yaw variances (rad^2), or angle_cov: (N, 6) the packed covariance (gives the NEES
-    too; its diagonal is used when var is None). Returns {'coverage_pct': {angle: %},
-    'sigma_deg': {angle: deg}, 'nees': float (NaN without angle_cov), 'dof', 'samples'};
-    yaw is NaN in 6D."""
+    too; its diagonal is used when var is None). Returns {'coverage_pct': {angle: %} (within
+    3 sigma), 'coverage_k_pct': {k: {angle: %}} (within k sigma, k = 1, 2, 3), 'sigma_deg':
+    {angle: deg}, 'nees': float (NaN without angle_cov), 'dof', 'samples'}; yaw is NaN in 6D."""
     n = np.asarray(q_est).shape[0]
     if var is None and angle_cov is None:
         raise ValueError("consistency needs var or angle_cov")
@@ -78,15 +82,18 @@ def consistency(q_est: np.ndarray, q_ref: np.ndarray, var: Optional[np.ndarray] 
     pitch = M.quat_to_euler(np.where(np.isfinite(q_est), q_est, 1.0))[:, 1]
     k = 2 if six_d else 3
     scored &= np.all(np.isfinite(var[:, :k]), axis=1) & np.all(var[:, :k] > 0, axis=1)
-    out: Dict[str, object] = {"coverage_pct": {}, "sigma_deg": {}, "nees": float("nan"), "dof": k,
-                              "samples": int(scored.sum()), "nees_samples": 0}
+    cov_k: Dict[int, Dict[str, float]] = {m: {} for m in COVERAGE_NOMINAL_PCT}
+    out: Dict[str, object] = {"coverage_pct": cov_k[3], "coverage_k_pct": cov_k, "sigma_deg": {},
+                              "nees": float("nan"), "dof": k, "samples": int(scored.sum()), "nees_samples": 0}
     for i, name in enumerate(ANGLES):
         if i >= k or not scored.any():
-            out["coverage_pct"][name] = float("nan")
+            for m in cov_k:
+                cov_k[m][name] = float("nan")
             out["sigma_deg"][name] = float("nan")
             continue
         sig = np.sqrt(var[scored, i])
-        out["coverage_pct"][name] = float(100.0 * np.mean(np.abs(d[scored, i]) <= 3.0 * sig))
+        for m in cov_k:
+            cov_k[m][name] = float(100.0 * np.mean(np.abs(d[scored, i]) <= m * sig))
         out["sigma_deg"][name] = float(np.degrees(np.mean(sig)))
     use = scored & (np.abs(pitch) < np.pi / 2 - NEES_GIMBAL_MARGIN)
     out["nees_samples"] = int(use.sum())
@@ -104,8 +111,10 @@ def consistency(q_est: np.ndarray, q_ref: np.ndarray, var: Optional[np.ndarray] 
 
 
 def flat(c: Dict[str, object]) -> Dict[str, float]:
-    """The per-trial numbers as flat keys (cov_roll, sigma_roll_deg, ..., nees) for result rows."""
+    """The per-trial numbers as flat keys (cov_roll, sigma_roll_deg, ..., nees; cov1_roll and
+    cov2_roll: within 1 and 2 sigma) for result rows."""
     out = {f"cov_{a}": c["coverage_pct"][a] for a in ANGLES}
+    out.update({f"cov{m}_{a}": c["coverage_k_pct"][m][a] for m in (1, 2) for a in ANGLES})
     out.update({f"sigma_{a}_deg": c["sigma_deg"][a] for a in ANGLES})
     out["nees"] = c["nees"]
     return out

@@ -16,6 +16,7 @@
 
 #include "att.h"
 #include "att_cov.h"
+#include "att_state.h"
 #include "testsim.h"
 #include "unity.h"
 
@@ -518,10 +519,26 @@ static void test_bad_settings_change_nothing(void)
     printf("settings: %d refused calls checked\n", g_paths - before);
 }
 
+/* The end-of-call check of the state (att_state_finite) sees a non-finite value in every
+ * state, the last included. */
+static void test_state_finiteness_sees_every_state(void)
+{
+    ekf_scalar_t x[ATT_N];
+    int i;
+    memset(x, 0, sizeof x);
+    TEST_ASSERT_EQUAL_INT(1, att_state_finite(x));
+    for (i = 0; i < ATT_N; ++i) {
+        memset(x, 0, sizeof x);
+        x[i] = ekf_from_double(INFINITY);
+        TEST_ASSERT_EQUAL_INT_MESSAGE(0, att_state_finite(x), "an infinite state missed");
+    }
+}
+
 int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_input_errors_change_nothing);
+    RUN_TEST(test_state_finiteness_sees_every_state);
     RUN_TEST(test_numeric_failures_discard_the_whole_call);
     RUN_TEST(test_bad_settings_change_nothing);
     printf("%d refused calls in all (%s)\n", g_paths, EKF_SCALAR_NAME);

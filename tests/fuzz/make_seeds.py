@@ -9,6 +9,7 @@ same files.
 """
 import math
 import os
+import re
 import struct
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -27,9 +28,31 @@ def real16(value, scale):
     return bytes([0]) + struct.pack("<h", q)
 
 
-# ---- fuzz_att: settings byte < 64 = defaults, then samples ------------------------------
-def att_structured(n, dtk, rates, tilt):
-    out = bytearray([0])  # default settings
+# ---- fuzz_att: settings byte < 64 = defaults (else 64 + changes), then samples ---------------
+def setting_rows():
+    """The rows of att_settings_table.h in att_setting_info order: main, then rest.*, bias.*."""
+    text = open(os.path.join(HERE, "..", "..", "firmware", "att", "att_settings_table.h")).read()
+    body = text[text.index("#define ATT_SETTINGS_MAIN"):]
+    rest, bias = body.index("#define ATT_SETTINGS_REST"), body.index("#define ATT_SETTINGS_BIAS")
+    return [("" if m.start() < rest else "rest." if m.start() < bias else "bias.") + m.group(1)
+            for m in re.finditer(r"X\((\w+),", body)]
+
+
+ROWS = setting_rows()
+
+
+def change(name, how, t=0):
+    """One settings change of fuzz_att.c: how < 96 a value within the range (t: its place,
+    0..255), 96..159 a bound (t < 128 the lower one)."""
+    return bytes([ROWS.index(name), how, t])
+
+
+def att_settings(changes):
+    return bytes([64 + len(changes)]) + b"".join(changes)
+
+
+def att_structured(n, dtk, rates, tilt, settings=b"\0"):
+    out = bytearray(settings)  # default settings unless given
     for k in range(n):
         g = rates(k)
         out += bytes([dtk, 0x87, tilt(k) & 0xFF, g[0] & 0xFF, g[1] & 0xFF, g[2] & 0xFF])
@@ -53,9 +76,15 @@ write("fuzz_att", "rest", att_structured(60, 47, lambda k: (0, 0, 0), lambda k: 
 write("fuzz_att", "turning", att_structured(120, 47, lambda k: (10, -5, 20), lambda k: 4))
 write("fuzz_att", "pitch_loop", att_structured(200, 95, lambda k: (0, 30, 0), lambda k: 60))
 write("fuzz_att", "free_values", att_free(40, 47))
-settings = bytearray([200])  # fuzz the settings: every field kept (byte < 160) but one scaled
-settings += bytes([0] * 5 + [250] + [0] * 22) + bytes([205])
-write("fuzz_att", "settings", settings + att_structured(40, 47, lambda k: (3, 3, 3), lambda k: 8)[1:])
+# settings within their ranges, and at the bounds the issue of the filter's promises named
+settings = att_settings([change("rate_walk", 0, 90), change("accel_lpf_order", 0, 0), change("bias.motion", 0, 128),
+                         change("rest.bias_tau", 0, 40), change("mag_reset_time", 0, 30),
+                         change("accel_adapt_tau", 0, 60)])
+write("fuzz_att", "settings", att_structured(40, 47, lambda k: (3, 3, 3), lambda k: 8, settings))
+bounds = att_settings([change("euler_rate_rel", 96, 255), change("bias.walk", 96, 255), change("dt_max", 96, 255),
+                       change("bias.sigma_init", 96, 0), change("accel_lpf_order", 96, 255),
+                       change("angle_walk_rate", 96, 255), change("mag_reset_time", 96, 0)])
+write("fuzz_att", "settings_bounds", att_structured(60, 150, lambda k: (20, -9, 5), lambda k: 20, bounds))
 
 
 def setting_count():

@@ -57,10 +57,22 @@ def test_coverage_and_nees_of_a_consistent_gaussian_error():
         assert c["coverage_pct"][ang] == pytest.approx(99.73, abs=0.2)
     assert c["nees"] == pytest.approx(1.0, abs=0.05)
     assert c["dof"] == 3
+    for k, nominal in ((1, 68.27), (2, 95.45), (3, 99.73)):          # erf(k / sqrt 2)
+        assert C.COVERAGE_NOMINAL_PCT[k] == pytest.approx(nominal, abs=0.005)
+        for ang in C.ANGLES:
+            assert c["coverage_k_pct"][k][ang] == pytest.approx(nominal, abs=1.0), (k, ang)
+    assert c["coverage_k_pct"][3] == c["coverage_pct"]
     # the same errors against half the sigma: coverage and NEES say so
     c2 = C.consistency(q_est, M.euler_to_quat(truth), angle_cov=packed / 4.0)
     assert c2["coverage_pct"]["roll"] == pytest.approx(86.64, abs=0.6)   # 3 half-sigmas = 1.5 sigma
+    assert c2["coverage_k_pct"][2]["roll"] == pytest.approx(68.27, abs=1.0)  # 2 half-sigmas = 1 sigma
     assert c2["nees"] == pytest.approx(4.0, rel=0.05)
+    # and against twice the sigma (over-stated): more inside than nominal, NEES a quarter
+    c3 = C.consistency(q_est, M.euler_to_quat(truth), angle_cov=packed * 4.0)
+    assert c3["coverage_k_pct"][1]["roll"] == pytest.approx(95.45, abs=0.6)  # 1 double sigma = 2 sigma
+    assert c3["nees"] == pytest.approx(0.25, rel=0.05)
+    flat = C.flat(c)
+    assert flat["cov1_pitch"] == c["coverage_k_pct"][1]["pitch"] and flat["cov2_yaw"] == c["coverage_k_pct"][2]["yaw"]
 
 
 def test_six_d_leaves_yaw_out():

@@ -147,10 +147,12 @@ def test_angle_covariance_is_the_full_matrix_and_consistent(sim_recording):
     np.testing.assert_array_equal(np.array([e.covariance for e in ests])[on], C)
     # consistency with the truth (errors computed here): normalised estimation error squared,
     # per degree of freedom, with the full matrix; the reported covariance is conservative
-    # (it carries error sources this simulation does not have), so below 1 but not far below
+    # (it carries error sources this simulation does not have), so below 1: held within a
+    # factor of 3 of its measured 0.131 both ways, since an over-stated covariance is as wrong
+    # as an under-stated one (test_consistency_bounds.py has the rule)
     err = wrapped(res.euler[on] - zyx_euler(quat_to_matrix(rec.quat_ref[on])))
     nees = np.einsum("ni,nij,nj->n", err, np.linalg.inv(C), err) / 3
-    assert 0.05 < nees[len(nees) // 4:].mean() < 1.5, nees.mean()
+    assert 0.131 / 3 < nees[len(nees) // 4:].mean() < 0.131 * 3, nees[len(nees) // 4:].mean()
 
 
 # ---- 6D and 9D from one call ---------------------------------------------------------------
