@@ -422,7 +422,7 @@ def format_report(r: Dict[str, object], vqf: Optional[Dict[str, Dict[str, Dict[s
             below = sum(min(c) < COVERAGE_TARGET for c, _ in vals)
             lines.append(f"  {label:9s} {dim}: worst coverage " + "/".join(f"{x:.1f}" for x in lo) + " %, mean sigma "
                          + "/".join(f"{x:.2f}" for x in ms) + f" deg, trials below {COVERAGE_TARGET:g} %: {below}")
-    lines += ["", "sensitivity (all trials, the other settings at the shipped values): objective = mean (9D + 6D) / 2"]
+    lines += ["", "sensitivity (all trials, the other settings at the all-trials choice): objective = mean (9D + 6D) / 2"]
     for name, prof in r["sensitivity"].items():
         lines.append(f"  {name}: " + "  ".join(f"{p['value']:g}: {p['objective']:.3f} ({p['total_9d']:.2f}/{p['total_6d']:.2f})"
                                              for p in prof))
