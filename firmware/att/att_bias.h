@@ -15,7 +15,8 @@
  * Each accelerometer or magnetometer scalar update with row h over the angles has the
  * sensitivity g = -h V to the offset: the offset is updated with the EKF's own innovation
  * and its variance S + g Pb g^T, only in the directions that measurement sees (tilt from the
- * accelerometer, heading from the magnetometer), and the angles follow by -V db. The
+ * accelerometer, heading from the magnetometer; from the accelerometer only at right angles to
+ * gravity, since the offset along it turns the heading alone), and the angles follow by -V db. The
  * attitude covariance including the offset's uncertainty is P + V Pb V^T (att_bias_cov).
  *
  * At rest the rest offset takes over: b decays with the rest detector's averaging weight
