@@ -79,7 +79,7 @@ def test_settings_by_name():
     assert d["gravity"] == pytest.approx(9.81, rel=1e-6)
     info = native.setting_info()
     assert set(info) == set(d)
-    assert info["gimbal_limit"]["range"] == (0.1, pytest.approx(1.5697963))
+    assert info["gimbal_limit"]["range"] == (0.1, pytest.approx(1.56))
     assert info["mag_ref_norm"]["live"] is False and info["accel_noise"]["live"] is True
     # the fixed-point build has its own defaults where float's are not representable
     assert native.default_settings("fixed")["var_floor"] == pytest.approx(1e-9, rel=0.02)
