@@ -105,6 +105,10 @@ void app_log(const app_t *a, hal_level_t level, const char *event, int32_t detai
 static ekf_status_t start(app_t *a, const app_config_t *cfg)
 {
     const ekf_status_t st = att_init(&a->ekf, &cfg->att);
+    /* the published counters count over the process's life: a restart starts the receive
+     * assemblers afresh, their counts carry on (app_init starts from zero) */
+    const dbc_rx_counts_t rx_counts = a->dbc_rx.n;
+    const uint32_t transfer_errors = a->dcan.rx.errors;
     uint64_t now;
     if (st != EKF_OK) {
         return st;
@@ -121,10 +125,12 @@ static ekf_status_t start(app_t *a, const app_config_t *cfg)
     a->was_aligned = 0u;
     a->out_index = 0u;
     dbc_rx_init(&a->dbc_rx, cfg->node.dbc_imu_base);
+    a->dbc_rx.n = rx_counts;
     dbc_tx_init(&a->dbc_tx, cfg->node.dbc_base);
     now = hal_now_us(a->hal);
     a->last_local_us = now;
     app_dcan_start(a, now);
+    a->dcan.rx.errors = transfer_errors;
     return EKF_OK;
 }
 

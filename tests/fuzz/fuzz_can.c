@@ -94,7 +94,10 @@ static void on_output(void *user, const app_output_t *o)
              (unsigned)o->att_flags);
     FZ_CHECK(o->kind == APP_OUT_ATTITUDE || o->kind == APP_OUT_HEARTBEAT, "kind %u", o->kind);
     if (k->have) {
-        FZ_CHECK(o->index == (uint16_t)(k->last_index + 1u), "index %u after %u", o->index, k->last_index);
+        /* consecutive, or 0 after a restart of the node (RestartNode, a restart parameter),
+         * which starts the outputs afresh and says so with the latched RESTARTED flag */
+        FZ_CHECK(o->index == (uint16_t)(k->last_index + 1u) || (o->index == 0u && (o->flags & APP_FLAG_RESTARTED) != 0u),
+                 "index %u after %u (flags 0x%x)", o->index, k->last_index, o->flags);
     }
     for (i = 0; i < APP_CNT_COUNT; ++i) {
         FZ_CHECK(o->counters[i] >= k->counters[i], "counter %s decreased", app_counter_name((app_counter_id_t)i));

@@ -307,8 +307,14 @@ int main(int argc, char **argv)
                 const int what = (int)(ts_uniform(&r) * 6.0);
                 ++st.bad_inputs;
                 switch (what) {
+#if defined(EKF_SCALAR_FIXED)
+                /* Q format has no NaN: its non-finite words are +-inf (ekf_fixed.h) */
+                case 0: smp.gyro[(int)(ts_uniform(&r) * 3.0)] = EKF_FX_NINF; break;
+                case 1: smp.accel[(int)(ts_uniform(&r) * 3.0)] = EKF_FX_INF; break;
+#else
                 case 0: smp.gyro[(int)(ts_uniform(&r) * 3.0)] = (ekf_scalar_t)NAN; break;
                 case 1: smp.accel[(int)(ts_uniform(&r) * 3.0)] = (ekf_scalar_t)INFINITY; break;
+#endif
                 case 2: smp.mag[0] = EKF_C(1e5); break;                 /* beyond mag_range */
                 case 3: smp.gyro[2] = EKF_C(100); break;                /* beyond gyro_range */
                 case 4: smp.dt = (ts_uniform(&r) < 0.5) ? EKF_C(0) : EKF_C(-1e-3); break;
