@@ -123,7 +123,7 @@ beside_wait
 # short fuzz run of every target (scripts/fuzz.sh --time 3600 for a long one).
 step "ctest under ASan + UBSan (scripts/test_sanitizers.sh)" "$ROOT/scripts/test_sanitizers.sh"
 step "valgrind memcheck on attekf-node (scripts/test_valgrind.sh)" "$ROOT/scripts/test_valgrind.sh"
-step "fuzzing, 60 s per target, mutation seed 1 (scripts/fuzz.sh)" "$ROOT/scripts/fuzz.sh" --time 60 --seed 1
+step "fuzzing, 30 s per target, mutation seed 1 (scripts/fuzz.sh)" "$ROOT/scripts/fuzz.sh" --time 30 --seed 1
 
 cpu_now
 echo "[test] time per stage (total $SECONDS s wall, $((CPU - cpu0)) s CPU; load average now: $(cut -d' ' -f1-3 /proc/loadavg)):"
