@@ -260,6 +260,28 @@ static void test_accelerometer_learns_only_horizontal_offset(void)
     }
 }
 
+/* The offset's update refuses an innovation beyond 3 sigma of its variance s_b (not the
+ * offset's doing) and takes one within. */
+static void test_offset_update_gate_is_three_sigma(void)
+{
+    static const ekf_scalar_t h[3] = {EKF_C(1), EKF_C(0), EKF_C(0)};
+    static const ekf_scalar_t pht[3] = {EKF_C(1e-4), EKF_C(0), EKF_C(0)};
+    int k;
+    for (k = 0; k < 2; ++k) {
+        const double n_sigma = (k == 0) ? 2.5 : 3.2;
+        att_bias_t bf;
+        ekf_scalar_t x_ang[3] = {EKF_C(0), EKF_C(0), EKF_C(0)};
+        double c0, sb;
+        att_bias_reset(&bf, &att_default_settings.bias);
+        bf.V[0] = EKF_C(1);
+        c0 = ekf_to_double(bf.Pb[0]) * 1e-3;
+        sb = 1e-4 + c0 * 1e-3; /* S + u Pb u^T with u = -h V unit */
+        TEST_ASSERT_EQUAL_INT(k == 0 ? 1 : 0, att_bias_update(&bf, 1, h, pht, ekf_from_double(n_sigma * sqrt(sb)),
+                                                              EKF_C(1e-4), EKF_C(1), NULL, x_ang));
+        TEST_ASSERT_TRUE((bf.b[0] != EKF_C(0)) == (k == 0));
+    }
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -268,6 +290,7 @@ int main(void)
     RUN_TEST(test_offset_learned_in_motion_6d);
     RUN_TEST(test_rest_takes_over);
     RUN_TEST(test_accelerometer_learns_only_horizontal_offset);
+    RUN_TEST(test_offset_update_gate_is_three_sigma);
     RUN_TEST(test_saturated_gyro_forgets_sensitivity);
     RUN_TEST(test_consider_colored_error_matches_simulation);
     RUN_TEST(test_reported_covariance_contains_references);
