@@ -209,6 +209,12 @@ class Filter:
         gyro_bias, flags, status, ... : help(attekf.Result)). progress(k), if given, is
         called after each block of samples with their number (blocks of 20000 C steps: the
         same filter, the same results)."""
+        times, steps, gyr, acc, mag = self._batch_inputs(gyr, acc, mag, t, rate_hz, dt)
+        return self._run(times, steps, gyr, acc, mag, t is not None, progress)
+
+    def _batch_inputs(self, gyr, acc, mag, t, rate_hz, dt):
+        """update_batch's and smooth_batch's arguments checked: (times s, steps s, gyr, acc,
+        mag) as the C run takes them."""
         gyr = native.rows3("gyr", gyr, "rad/s")
         n = gyr.shape[0]
         acc = native.rows3("acc", acc, "m/s^2", n)
@@ -224,7 +230,7 @@ class Filter:
             times = np.arange(n) / float(rate_hz)
         else:
             times = np.concatenate(([0.0], np.cumsum(steps[1:]))) if n else np.zeros(0)
-        return self._run(times, steps, gyr, acc, mag, t is not None, progress)
+        return times, steps, gyr, acc, mag
 
     def smooth_batch(self, gyr: np.ndarray, acc: np.ndarray, mag: Optional[np.ndarray] = None, *,
                      t: Optional[np.ndarray] = None, rate_hz: Optional[float] = None,
@@ -237,21 +243,7 @@ class Filter:
         leave it. progress(k), if given, is called with the samples done, 2 N in all (the
         forward pass, then the backward pass). segment: samples per segment of the smoother's
         memory (default: 64 MiB of traces; docs/host_tools.md, "Smoothing")."""
-        gyr = native.rows3("gyr", gyr, "rad/s")
-        n = gyr.shape[0]
-        acc = native.rows3("acc", acc, "m/s^2", n)
-        mag = None if mag is None else native.rows3("mag", mag, "uT", n)
-        if t is None and rate_hz is None and dt is None:
-            if self._dt is None:
-                raise ValueError("give t (timestamps, s), rate_hz (Hz) or dt (s), or Filter(dt=...)")
-            dt = self._dt
-        steps = native.time_steps(n, t=t, rate_hz=rate_hz, dt=dt, t_prev=self._t_last, first=self._dt)
-        if t is not None:
-            times = np.ascontiguousarray(t, dtype=np.float64)
-        elif rate_hz is not None:
-            times = np.arange(n) / float(rate_hz)
-        else:
-            times = np.concatenate(([0.0], np.cumsum(steps[1:]))) if n else np.zeros(0)
+        times, steps, gyr, acc, mag = self._batch_inputs(gyr, acc, mag, t, rate_hz, dt)
         return self._run(times, steps, gyr, acc, mag, t is not None, progress, _segment(segment))
 
     def smooth_recording(self, rec, use_mag: bool = True, progress=None, segment: Optional[int] = None) -> Result:
