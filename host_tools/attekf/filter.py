@@ -248,23 +248,22 @@ class Filter:
 
     def smooth_recording(self, rec, use_mag: bool = True, progress=None, segment: Optional[int] = None) -> Result:
         """run_recording with the smoother (smooth_batch)."""
-        n = len(rec.t)
-        gyr = native.rows3("gyr", rec.gyr, "rad/s", n, layout_known=True)
-        acc = native.rows3("acc", rec.acc, "m/s^2", n, layout_known=True)
-        mag = native.rows3("mag", rec.mag, "uT", n, layout_known=True) if use_mag and rec.mag is not None else None
-        steps = native.time_steps(n, t=rec.t, t_prev=self._t_last, first=self._dt or (1.0 if n == 1 else None))
-        return self._run(np.ascontiguousarray(rec.t, dtype=np.float64), steps, gyr, acc, mag, True, progress,
-                         _segment(segment))
+        return self._run(*self._recording_inputs(rec, use_mag), True, progress, _segment(segment))
 
     def run_recording(self, rec, use_mag: bool = True, progress=None) -> Result:
         """update_batch over a recording read by attekf.io.read_recording (its timestamps;
         use_mag=False: as if it had no magnetometer). progress(k) as in update_batch."""
+        return self._run(*self._recording_inputs(rec, use_mag), True, progress)
+
+    def _recording_inputs(self, rec, use_mag: bool):
+        """run_recording's and smooth_recording's inputs from a recording: (times s, steps s,
+        gyr, acc, mag) as the C run takes them."""
         n = len(rec.t)
         gyr = native.rows3("gyr", rec.gyr, "rad/s", n, layout_known=True)
         acc = native.rows3("acc", rec.acc, "m/s^2", n, layout_known=True)
         mag = native.rows3("mag", rec.mag, "uT", n, layout_known=True) if use_mag and rec.mag is not None else None
         steps = native.time_steps(n, t=rec.t, t_prev=self._t_last, first=self._dt or (1.0 if n == 1 else None))
-        return self._run(np.ascontiguousarray(rec.t, dtype=np.float64), steps, gyr, acc, mag, True, progress)
+        return np.ascontiguousarray(rec.t, dtype=np.float64), steps, gyr, acc, mag
 
     def _run(self, times, steps, gyr, acc, mag, timestamps: bool, progress, segment: Union[None, bool, int] = False
              ) -> Result:
