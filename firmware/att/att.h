@@ -74,7 +74,7 @@ extern const att_settings_t att_default_settings;
 #define ATT_FLAG_ACCEL_GATED      (1u << 7)  /* last accel: at least one axis gated */
 #define ATT_FLAG_MAG_GATED        (1u << 8)  /* last mag: gated */
 #define ATT_FLAG_GATE_BYPASS      (1u << 9)  /* a gate is bypassed after gate_timeout */
-#define ATT_FLAG_HEADING_LIMITED  (1u << 10) /* heading variance at heading_var_max */
+#define ATT_FLAG_HEADING_LIMITED  (1u << 10) /* heading variance at heading_var_max, or no heading reference yet */
 #define ATT_FLAG_REMAPPED         (1u << 11) /* last predict: pitch passed +-90 deg, remapped */
 #define ATT_FLAG_COV_REPAIRED     (1u << 12) /* last call: P was loaded to stay positive definite */
 #define ATT_FLAG_AT_REST          (1u << 13) /* last sample: at rest, gyroscope offset learned */
@@ -132,6 +132,8 @@ typedef struct {
     uint8_t rate_unmeasured;    /* the last gyro sample was saturated: the rate state is a guess */
     uint8_t tilt_ok;            /* last accelerometer update: fused, no linear acceleration,
                                    every innovation within 3 sigma (heading resets need it) */
+    uint8_t heading_ref;        /* the heading is the field's: aligned with it, or a field
+                                   fused or reset it since (else the heading is arbitrary) */
     ekf_scalar_t last_dt;       /* s, of the last prediction (time base of the running means) */
     att_trig_t trig;            /* sines and cosines (no clamp) of trig_at's roll and pitch, rad: */
     ekf_scalar_t trig_at[2];    /* left by the prediction for the measurement stage after it */

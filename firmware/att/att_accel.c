@@ -104,6 +104,27 @@ static ekf_scalar_t learn_excess(const att_vars_t *v, const att_settings_t *s, e
     return ekf_div(ekf_mul(ekf_mul(EKF_C(2), ekf_div(v->accel_dev_var, ekf_sq(s->gravity))), T), dt);
 }
 
+/* Without a heading reference (att_vars_t.heading_ref): the accelerometer sees the tilt, never a turn about the vertical, so its
+ * update must not turn the body about the vertical. In the state's angles a roll change at
+ * pitch theta is itself such a turn, -sin(theta) dphi, and the Kalman gain on psi follows
+ * correlations that nothing has measured; the gain on psi becomes sin(theta) times the one on
+ * phi (a Schmidt update of the turn about the vertical), P the Joseph form for that gain,
+ * which is the Kalman update's P plus delta^2 / S on psi's variance, with
+ * delta = sin(theta) (P h^T)_phi - (P h^T)_psi (docs/derivation.md, "Accelerometer: no turn
+ * about the vertical"). pht: the angle rows of P h^T before the update; sth: sin of the
+ * pitch both components are linearised about (the prior's); nu, s_var: the component's
+ * innovation and innovation variance. */
+static void hold_vertical(att_vars_t *v, const ekf_scalar_t pht[3], ekf_scalar_t sth, ekf_scalar_t nu,
+                          ekf_scalar_t s_var)
+{
+    const ekf_scalar_t delta = ekf_sub(ekf_mul(sth, pht[0]), pht[2]);
+    if (v->heading_ref != 0u || !(s_var > EKF_C(0))) {
+        return;
+    }
+    v->x[ATT_PSI] = ekf_add(v->x[ATT_PSI], ekf_div(ekf_mul(delta, nu), s_var));
+    att_cov_add_diag(&v->cov, ATT_PSI, 1, ekf_mul(ekf_div(delta, s_var), delta));
+}
+
 /* The unit vector a / norm, fused as its two components in the tangent plane of the
  * predicted gravity direction h: along u_phi = dh/dphi / |dh/dphi| = (0, c_phi, -s_phi) with
  * H = (c_th, 0, 0) on (phi, theta, psi), and along u_theta = dh/dtheta (a unit vector, at
@@ -153,6 +174,7 @@ static ekf_status_t accel_fuse(att_vars_t *v, const att_settings_t *s, const ekf
         pht[2] = ekf_mul(att_cov_get(&v->cov, ATT_PSI, ang), h3[i]);
         st = att_cov_update_angles(&v->cov, v->x, h3, nu, r_var, gate, s->var_floor, &info);
         if (st == EKF_OK) {
+            hold_vertical(v, pht, t.sth, nu, info.variance);
             (void)att_bias_update(&v->bias, learn, h3, pht, nu, info.variance,
                                   ekf_add(EKF_C(1), ekf_div(excess, info.variance)), up, &v->x[ATT_PHI]);
         }

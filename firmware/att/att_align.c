@@ -85,6 +85,7 @@ ekf_status_t att_stage_align(att_vars_t *v, const att_settings_t *s, const ekf_s
     v->accel_lp_valid = 1u;
     v->tilt_ok = 1u; /* the tilt is the accelerometer's */
     v->flags = ATT_FLAG_ALIGNED;
+    v->heading_ref = use_mag ? 1u : 0u;
     if (!use_mag) {
         v->flags |= ATT_FLAG_HEADING_LIMITED;
     }

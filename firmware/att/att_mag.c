@@ -140,6 +140,7 @@ static ekf_status_t fuse_heading(att_vars_t *v, const att_settings_t *s, ekf_sca
         return st; /* EKF_ERR_NUMERIC: the caller puts the saved variables back */
     }
     ekf_count(&v->diag.mag_fused);
+    v->heading_ref = 1u;
     att_sensor_gate_result(v, s, ATT_SENSOR_MAG, 0);
     if (att_normalise(v)) {
         ekf_count(&v->diag.remaps);
@@ -186,6 +187,7 @@ ekf_status_t att_stage_mag(att_vars_t *v, const att_settings_t *s, const ekf_sca
         reset_heading(v, s, heading, ekf_min(ekf_sq(s->init_heading_sigma), s->heading_var_max));
         v->flags &= ~ATT_FLAG_HEADING_LIMITED;
         ekf_count(&v->diag.mag_fused);
+        v->heading_ref = 1u;
         return EKF_OK;
     }
     track_reference(v, s, norm, att_mag_dip(lev), dt);
@@ -210,6 +212,7 @@ ekf_status_t att_stage_mag(att_vars_t *v, const att_settings_t *s, const ekf_sca
         reset_heading(v, s, heading, ekf_min(ekf_sq(s->init_heading_sigma), s->heading_var_max));
         ekf_count(&v->diag.heading_resets);
         ekf_count(&v->diag.mag_fused);
+        v->heading_ref = 1u;
         att_sensor_gate_result(v, s, ATT_SENSOR_MAG, 0);
         return EKF_OK;
     }

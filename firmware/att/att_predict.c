@@ -159,8 +159,10 @@ static void adopt_prediction(att_vars_t *v, const att_settings_t *s, const ekf_s
         att_bias_restart(&v->bias);
     }
     limit_variances(v, s);
+    /* without a reference the heading is arbitrary whatever its variance (the accelerometer's
+     * updates at a pitch reduce it below the cap: "no turn about the vertical") */
     if (att_cov_limit_variance(&v->cov, ATT_PSI, s->heading_var_max) ||
-        !(att_cov_var(&v->cov, ATT_PSI) < s->heading_var_max)) {
+        !(att_cov_var(&v->cov, ATT_PSI) < s->heading_var_max) || v->heading_ref == 0u) {
         v->flags |= ATT_FLAG_HEADING_LIMITED;
     } else {
         v->flags &= ~ATT_FLAG_HEADING_LIMITED;

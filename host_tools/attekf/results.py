@@ -37,7 +37,7 @@ class Flag(enum.IntFlag):
     ACCEL_GATED = 1 << 7        #: last accel: at least one axis gated
     MAG_GATED = 1 << 8          #: last mag: gated
     GATE_BYPASS = 1 << 9        #: a gate is bypassed after gate_timeout
-    HEADING_LIMITED = 1 << 10   #: heading variance at heading_var_max
+    HEADING_LIMITED = 1 << 10   #: heading variance at heading_var_max, or no heading reference yet
     REMAPPED = 1 << 11          #: last predict: pitch passed +-90 deg, remapped
     COV_REPAIRED = 1 << 12      #: last call: P was loaded to stay positive definite
     AT_REST = 1 << 13           #: last sample: at rest, gyroscope offset learned

@@ -108,6 +108,7 @@ static void test_tangent_plane_updates_equal_batch(void)
     ekf_scalar_t as[3];
     af_random_cov(3, k_var, P0);
     af_vars_full(&v, &s, k_x, P0);
+    v.heading_ref = 1u; /* (else "no turn about the vertical" below) */
     force(1.02 * G, PHI0 + 0.03, THETA0 + 0.03, a, as);
     expect_batch(&v, a, r_of(NOISE), x, P);
     TEST_ASSERT_EQUAL_INT(EKF_OK, att_stage_accel(&v, &s, as, EKF_C(DT)));
@@ -117,6 +118,84 @@ static void test_tangent_plane_updates_equal_batch(void)
     TEST_ASSERT_EQUAL_UINT8(1u, v.tilt_ok);
     TEST_ASSERT_EQUAL_UINT32(0u,
                              v.flags & (ATT_FLAG_ACCEL_DEWEIGHTED | ATT_FLAG_ACCEL_REJECTED | ATT_FLAG_ACCEL_GATED));
+}
+
+/* The two components fused in turn as accel_fuse does (u and the second's relinearisation
+ * as above), each with the gain K = P h / S except on psi, K_psi = sin(theta) K_phi at the
+ * pitch both are linearised about (the prior's), and P by Joseph's form for that gain: written out in double, with
+ * no use of the update's closed form (Kalman P plus delta^2 / S on psi). */
+static void expect_held(const att_vars_t *v, const double a[3], double r, double x[ATT_N], double P[ATT_N * ATT_N])
+{
+    const double n = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+    double u[2][3], th0, A[ATT_N * ATT_N], T[ATT_N * ATT_N];
+    int c, i, j, k;
+    x_of(v, x);
+    af_cov(v, P);
+    th0 = x[ATT_THETA];
+    u[0][0] = 0.0, u[0][1] = cos(x[ATT_PHI]), u[0][2] = -sin(x[ATT_PHI]);
+    u[1][0] = -cos(th0), u[1][1] = -sin(x[ATT_PHI]) * sin(th0), u[1][2] = -cos(x[ATT_PHI]) * sin(th0);
+    for (c = 0; c < 2; ++c) {
+        double h[ATT_N] = {0}, K[ATT_N], S = r;
+        double nu = (u[c][0] * a[0] + u[c][1] * a[1] + u[c][2] * a[2]) / n - ((c == 1) ? x[ATT_THETA] - th0 : 0.0);
+        h[(c == 0) ? ATT_PHI : ATT_THETA] = (c == 0) ? cos(th0) : 1.0;
+        for (i = 0; i < ATT_N; ++i) {
+            K[i] = 0.0;
+            for (j = 0; j < ATT_N; ++j) {
+                K[i] += P[i * ATT_N + j] * h[j];
+            }
+        }
+        for (i = 0; i < ATT_N; ++i) {
+            S += h[i] * K[i];
+        }
+        for (i = 0; i < ATT_N; ++i) {
+            K[i] /= S;
+        }
+        K[ATT_PSI] = sin(th0) * K[ATT_PHI];
+        for (i = 0; i < ATT_N; ++i) {
+            x[i] += K[i] * nu;
+            for (j = 0; j < ATT_N; ++j) {
+                A[i * ATT_N + j] = ((i == j) ? 1.0 : 0.0) - K[i] * h[j];
+            }
+        }
+        for (i = 0; i < ATT_N; ++i) { /* T = A P */
+            for (j = 0; j < ATT_N; ++j) {
+                T[i * ATT_N + j] = 0.0;
+                for (k = 0; k < ATT_N; ++k) {
+                    T[i * ATT_N + j] += A[i * ATT_N + k] * P[k * ATT_N + j];
+                }
+            }
+        }
+        for (i = 0; i < ATT_N; ++i) { /* P = T A^T + r K K^T */
+            for (j = 0; j < ATT_N; ++j) {
+                double sum = r * K[i] * K[j];
+                for (k = 0; k < ATT_N; ++k) {
+                    sum += T[i * ATT_N + k] * A[j * ATT_N + k];
+                }
+                P[i * ATT_N + j] = sum;
+            }
+        }
+    }
+}
+
+/* Without a heading reference the update turns nothing about the vertical (first order:
+ * dpsi = sin(theta) dphi per component) and P is Joseph's for that gain; the heading's
+ * variance is then larger than the Kalman update's. */
+static void test_no_turn_about_the_vertical(void)
+{
+    const att_settings_t s = plain();
+    double P0[ATT_N * ATT_N], x[ATT_N], P[ATT_N * ATT_N], xk[ATT_N], Pk[ATT_N * ATT_N], a[3];
+    att_vars_t v;
+    ekf_scalar_t as[3];
+    af_random_cov(3, k_var, P0);
+    af_vars_full(&v, &s, k_x, P0);
+    force(1.02 * G, PHI0 + 0.03, THETA0 + 0.03, a, as);
+    expect_held(&v, a, r_of(NOISE), x, P);
+    expect_batch(&v, a, r_of(NOISE), xk, Pk);
+    TEST_ASSERT_EQUAL_INT(EKF_OK, att_stage_accel(&v, &s, as, EKF_C(DT)));
+    check_result(&v, x, P, __LINE__);
+    /* and it is not the Kalman update (the case is not one where the two agree) */
+    TEST_ASSERT_TRUE(fabs(x[ATT_PSI] - xk[ATT_PSI]) > 1e-3);
+    TEST_ASSERT_TRUE(P[ATT_PSI * ATT_N + ATT_PSI] > Pk[ATT_PSI * ATT_N + ATT_PSI] + 1e-5);
 }
 
 /* In motion with the low-pass on, the vector fused is the low-passed force after this
@@ -136,6 +215,7 @@ static void test_vector_and_weight_at_rest_and_in_motion(void)
         s.accel_lpf_order = 2u;
         s.rest.accel_noise = (mode == 2) ? EKF_C(0) : EKF_C(REST_NOISE);
         af_vars(&v, &s, k_x, k_var);
+        v.heading_ref = 1u; /* a heading reference: the Kalman update of expect_batch */
         if (mode > 0) {
             v.flags |= ATT_FLAG_AT_REST;
         }
@@ -240,6 +320,7 @@ static void test_band(void)
         ekf_scalar_t as[3];
         s.accel_band = EKF_C(1.0);
         af_vars(&v, &s, k_x, k_var);
+        v.heading_ref = 1u; /* a heading reference: the Kalman update of expect_batch */
         force(G + err, PHI0 + 0.02, THETA0 + 0.01, a, as);
         expect_batch(&v, a, r_of(NOISE) * (1.0 + err * err), x, P);
         TEST_ASSERT_EQUAL_INT(EKF_OK, att_stage_accel(&v, &s, as, EKF_C(DT)));
@@ -265,6 +346,7 @@ static void test_adaptive_variance(void)
         s.accel_adapt_tau = EKF_C(0.5);
         s.accel_adapt_weight = ekf_from_double(w);
         af_vars(&v, &s, k_x, k_var);
+        v.heading_ref = 1u; /* a heading reference: the Kalman update of expect_batch */
         v.accel_dev_var = ekf_from_double(v0);
         force(G + e, PHI0 + 0.002, THETA0 - 0.001, a, as);
         expect_batch(&v, a, (noise * noise + v1 * w) / (DT * G * G), x, P);
@@ -362,6 +444,7 @@ int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_tangent_plane_updates_equal_batch);
+    RUN_TEST(test_no_turn_about_the_vertical);
     RUN_TEST(test_vector_and_weight_at_rest_and_in_motion);
     RUN_TEST(test_gate_per_component);
     RUN_TEST(test_rejection);

@@ -32,6 +32,7 @@ static void zero_vars(att_vars_t *v, const att_settings_t *s)
     static const double x0[ATT_N] = {0}, var0[ATT_N] = {1, 1, 1, 1, 1, 1, 1, 1, 1};
     af_vars(v, s, x0, var0);
     v->flags = 0u;
+    v->heading_ref = 1u; /* (the alignment sets it either way) */
 }
 
 /* Roll and pitch invert h = R^T e_z at any attitude, upside down and near +-90 deg pitch
@@ -56,6 +57,7 @@ static void test_tilt_from_gravity(void)
             TEST_ASSERT_TRUE(v.x[ATT_P + i] == EKF_C(0) && v.x[ATT_PHID + i] == EKF_C(0));
         }
         TEST_ASSERT_EQUAL_UINT32(ATT_FLAG_ALIGNED | ATT_FLAG_HEADING_LIMITED, v.flags);
+        TEST_ASSERT_EQUAL_UINT8(0u, v.heading_ref); /* the heading is arbitrary */
         AF_NEAR_S(ekf_to_double(s->heading_var_max), att_cov_var(&v.cov, ATT_PSI), af_ulp(10.0));
         TEST_ASSERT_TRUE(v.mag_ref_norm == EKF_C(0));
     }
@@ -80,6 +82,7 @@ static void test_heading_and_reference_from_field(void)
         AF_NEAR(0.0, wrap(ekf_to_double(v.x[ATT_PSI]) - att[k][2]), 16.0 * af_ulp(4.0));
         TEST_ASSERT_TRUE(v.x[ATT_PSI] >= ekf_neg(EKF_PI) && v.x[ATT_PSI] < EKF_PI);
         TEST_ASSERT_EQUAL_UINT32(ATT_FLAG_ALIGNED, v.flags);
+        TEST_ASSERT_EQUAL_UINT8(1u, v.heading_ref);
         AF_NEAR_S(sqrt(BH * BH + BV * BV), v.mag_ref_norm, 4.0 * af_ulp(50.0));
         AF_NEAR_S(atan2(BV, BH), v.mag_ref_dip, 8.0 * af_ulp(2.0));
         AF_NEAR_S((BV / BH) * (BV / BH), v.mag_tan2_dip, 32.0 * af_ulp(4.0));

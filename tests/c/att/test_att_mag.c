@@ -136,6 +136,7 @@ static void test_update_equals_batch(void)
         af_cov_near(&v, P, 64.0 * af_ulp(0.01), __LINE__);
         AF_NEAR_S((1.0 - k) * (1.0 - k) * 0.02, v.consider.rate[2], 64.0 * af_ulp(0.02));
         TEST_ASSERT_EQUAL_UINT32(1u, v.diag.mag_fused);
+        TEST_ASSERT_EQUAL_UINT8(1u, v.heading_ref); /* (af_vars_full: 0 before) */
     }
 }
 
@@ -296,6 +297,7 @@ static void test_first_field_sets_reference_and_heading(void)
     AF_NEAR_S(psi, v.x[ATT_PSI], 16.0 * af_ulp(4.0));
     af_cov_near(&v, P, 4.0 * af_ulp(0.05), __LINE__);
     TEST_ASSERT_EQUAL_UINT32(0u, v.flags & ATT_FLAG_HEADING_LIMITED);
+    TEST_ASSERT_EQUAL_UINT8(1u, v.heading_ref);
     AF_NEAR_S(ref_norm(), v.mag_ref_norm, 16.0 * af_ulp(50.0));
     AF_NEAR_S(ref_dip(), v.mag_ref_dip, 16.0 * af_ulp(2.0));
     for (i = 0; i < 3; ++i) {
@@ -356,12 +358,14 @@ static void test_heading_reset_conditions(void)
             AF_NEAR_S(hv, att_cov_var(&v.cov, ATT_PSI), 2.0 * af_ulp(hv));
             TEST_ASSERT_EQUAL_UINT32(1u, v.diag.heading_resets);
             TEST_ASSERT_EQUAL_UINT32(1u, v.diag.mag_fused);
+            TEST_ASSERT_EQUAL_UINT8(1u, v.heading_ref);
             TEST_ASSERT_TRUE(v.gated_time[2] == EKF_C(0));
             TEST_ASSERT_TRUE(v.bias.V[6] == EKF_C(0) && v.bias.V[8] == EKF_C(0) && v.bias.V[0] == EKF_C(0.2));
             TEST_ASSERT_TRUE(v.consider.rate[2] == EKF_C(0));
         } else {
             TEST_ASSERT_EQUAL_INT((c == DISTURBED) ? EKF_SKIPPED : EKF_GATED, st);
             TEST_ASSERT_EQUAL_UINT32(0u, v.diag.heading_resets);
+            TEST_ASSERT_EQUAL_UINT8(0u, v.heading_ref);
             AF_NEAR_S(PSI0, v.x[ATT_PSI], af_ulp(4.0));
             TEST_ASSERT_TRUE((c == DISTURBED) ? v.gated_time[2] == EKF_C(0) : v.gated_time[2] > EKF_C(2.9));
         }
