@@ -112,13 +112,14 @@ def _consider_task(task):
         runs.append(native.run_arrays(rec.t, rec.gyr, rec.acc, None if six_d else rec.mag, s, scalar))
     q = runs[0].quat.copy()
     q[~runs[0].aligned] = np.nan
-    base = runs[0].angle_cov
-    r1 = (runs[1].angle_cov - base) / K0 ** 2
     mag_ref = ((runs[0].flags & HEADING_LIMITED) == 0).astype(float)
     scored = rec.movement.astype(bool) & np.all(np.isfinite(q), axis=1) & np.all(np.isfinite(rec.quat_ref), axis=1)
     d = C.euler_errors(q, rec.quat_ref, six_d, scored)
     dof = 2 if six_d else 3
-    d, base, r1, mag_ref = d[scored, :dof], base[scored], r1[scored], mag_ref[scored]
+    # (before the alignment the covariances are NaN: only the scored samples are compared)
+    base = runs[0].angle_cov[scored]
+    r1 = (runs[1].angle_cov[scored] - base) / K0 ** 2
+    d, mag_ref = d[scored, :dof], mag_ref[scored]
     table = {}
     for k, sa, sm in itertools.product(*CONSIDER_GRID.values()):
         var = base[:, :3] + k * k * r1[:, :3]
