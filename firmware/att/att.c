@@ -86,6 +86,15 @@ static ekf_status_t check_vec(const ekf_scalar_t vec[3], ekf_scalar_t range)
     return EKF_ERR_RANGE;
 }
 
+/* Finite (the accelerometer: its stages judge a reading at the range as clipped). */
+static ekf_status_t check_finite(const ekf_scalar_t vec[3])
+{
+    if (vec == NULL) {
+        return EKF_ERR_NULL;
+    }
+    return (ekf_isfinite(vec[0]) && ekf_isfinite(vec[1]) && ekf_isfinite(vec[2])) ? EKF_OK : EKF_ERR_NOT_FINITE;
+}
+
 /* A time step in (0, dt_max]. */
 static ekf_status_t check_dt(const att_settings_t *s, ekf_scalar_t dt)
 {
@@ -179,7 +188,8 @@ ekf_status_t att_predict(att_ekf_t *f, ekf_scalar_t dt)
 typedef ekf_status_t (*sensor_stage_t)(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t vec[3],
                                        ekf_scalar_t dt);
 
-/* att_update_gyro, _accel, _mag: aligned filter, a valid vector and interval, one stage. */
+/* att_update_gyro, _accel, _mag: aligned filter, a valid vector and interval, one stage
+ * (range 0: finite only). */
 static ekf_status_t public_update(att_ekf_t *f, const ekf_scalar_t vec[3], ekf_scalar_t dt, ekf_scalar_t range,
                                   sensor_stage_t stage)
 {
@@ -188,7 +198,9 @@ static ekf_status_t public_update(att_ekf_t *f, const ekf_scalar_t vec[3], ekf_s
     if (f == NULL) {
         return EKF_ERR_NULL;
     }
-    st = ((f->vars.flags & ATT_FLAG_ALIGNED) == 0u) ? EKF_ERR_NOT_INITIALISED : check_vec(vec, range);
+    st = ((f->vars.flags & ATT_FLAG_ALIGNED) == 0u) ? EKF_ERR_NOT_INITIALISED
+         : (range > EKF_C(0))                       ? check_vec(vec, range)
+                                                    : check_finite(vec);
     if (st == EKF_OK) {
         st = check_dt(&f->settings, dt);
     }
@@ -210,7 +222,7 @@ ekf_status_t att_update_gyro(att_ekf_t *f, const ekf_scalar_t gyro[3], ekf_scala
 
 ekf_status_t att_update_accel(att_ekf_t *f, const ekf_scalar_t accel[3], ekf_scalar_t dt)
 {
-    return public_update(f, accel, dt, (f != NULL) ? f->settings.accel_range : EKF_C(0), att_stage_accel);
+    return public_update(f, accel, dt, EKF_C(0), att_stage_accel); /* (clipping: the stage) */
 }
 
 ekf_status_t att_update_mag(att_ekf_t *f, const ekf_scalar_t mag[3], ekf_scalar_t dt)
@@ -255,7 +267,7 @@ static ekf_status_t validate_sample(const att_ekf_t *f, const att_sample_t *sm, 
         rep->gyro = check_vec(sm->gyro, s->gyro_range);
     }
     if ((sm->valid & ATT_HAS_ACCEL) != 0u) {
-        rep->accel = check_vec(sm->accel, s->accel_range);
+        rep->accel = check_finite(sm->accel); /* a clipped reading is the stages' to skip */
     }
     if ((sm->valid & ATT_HAS_MAG) != 0u) {
         rep->mag = check_vec(sm->mag, s->mag_range);
@@ -309,6 +321,10 @@ static ekf_status_t gyro_stage(att_vars_t *w, const att_settings_t *s, const att
 static void rest_stage(att_vars_t *w, const att_settings_t *s, const att_sample_t *sm)
 {
     w->flags &= ~ATT_FLAG_AT_REST;
+    if ((sm->valid & ATT_HAS_ACCEL) != 0u && att_accel_clipped(s, sm->accel)) {
+        att_rest_motion(&w->rest); /* (values at the range: not averaged) */
+        return;
+    }
     if ((sm->valid & (ATT_HAS_GYRO | ATT_HAS_ACCEL | ATT_GYRO_SATURATED)) == (ATT_HAS_GYRO | ATT_HAS_ACCEL) &&
         check_dt(s, sm->dt) == EKF_OK && att_rest_update(&w->rest, &s->rest, sm->gyro, sm->accel, sm->dt)) {
         w->flags |= ATT_FLAG_AT_REST;

@@ -66,7 +66,7 @@ extern const att_settings_t att_default_settings;
 /* Status flags (att_flags()). "last" means the most recent sample of that sensor. */
 #define ATT_FLAG_ALIGNED          (1u << 0)  /* initial attitude set */
 #define ATT_FLAG_GIMBAL_LOCK      (1u << 1)  /* |theta| > gimbal_limit */
-#define ATT_FLAG_ACCEL_DEWEIGHTED (1u << 2)  /* last accel: linear acceleration, noise variance >= doubled */
+#define ATT_FLAG_ACCEL_DEWEIGHTED (1u << 2)  /* last accel: linear acceleration or clipped, noise variance >= doubled */
 #define ATT_FLAG_ACCEL_REJECTED   (1u << 3)  /* last accel: norm beyond accel_reject, not fused */
 #define ATT_FLAG_MAG_DISTURBED    (1u << 4)  /* last mag: norm or dip off reference, not fused */
 #define ATT_FLAG_HEADING_HELD     (1u << 5)  /* last mag: not fused because of gimbal lock */
@@ -151,6 +151,11 @@ typedef struct {
     att_settings_t settings;
     att_vars_t vars;
 } att_ekf_t;
+
+/* The relative margin below accel_range at which an accelerometer reading counts as clipped
+ * (not fused; the step goes on with the other sensors): a sensor at its full scale reports its
+ * largest code, a few parts in 10^4 below the nominal range for 12 bits and more. */
+#define ATT_ACCEL_CLIP_MARGIN 1e-3
 
 /* Sensor presence bits of att_sample_t.valid */
 #define ATT_HAS_GYRO  (1u << 0)

@@ -193,14 +193,32 @@ static ekf_status_t accel_fuse(att_vars_t *v, const att_settings_t *s, const ekf
     return out;
 }
 
+int att_accel_clipped(const att_settings_t *s, const ekf_scalar_t accel[3])
+{
+    const ekf_scalar_t at = ekf_mul(s->accel_range, EKF_C(1.0 - ATT_ACCEL_CLIP_MARGIN));
+    return !(ekf_abs(accel[0]) < at) || !(ekf_abs(accel[1]) < at) || !(ekf_abs(accel[2]) < at);
+}
+
 ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_scalar_t accel[3], ekf_scalar_t dt)
 {
     const int rest = (v->flags & ATT_FLAG_AT_REST) != 0u && s->rest.accel_noise > EKF_C(0);
-    ekf_scalar_t norm, a_norm, err, r_var, var0[2], a[3];
+    const int clipped = att_accel_clipped(s, accel);
+    ekf_scalar_t norm, a_norm, err, r_var, var0[2], a[3], clamped[3];
     ekf_status_t st;
     int bypass_failed = 0, consistent = 1;
 
     v->tilt_ok = 0u; /* until this update shows otherwise */
+    if (clipped) {
+        /* what the sensor would have read at its full scale: beyond it only a wrong range
+         * setting gives, and the value is still the best lower bound of the force (dropping
+         * clipped samples biases the low-passed force by their whole impact) */
+        int i;
+        for (i = 0; i < 3; ++i) {
+            clamped[i] = ekf_max(ekf_neg(s->accel_range), ekf_min(accel[i], s->accel_range));
+        }
+        accel = clamped;
+        att_bias_hold(&v->bias, s->bias.hold_time); /* the innovation is the clip's, not the offset's */
+    }
     norm = att_norm3(accel);
     err = ekf_abs(ekf_sub(norm, s->gravity));
     v->diag.accel_norm_error = err;
@@ -214,6 +232,10 @@ ekf_status_t att_stage_accel(att_vars_t *v, const att_settings_t *s, const ekf_s
         return EKF_SKIPPED;
     }
     r_var = accel_variance(v, s, err, dt, rest);
+    if (clipped) {
+        r_var = ekf_mul(EKF_C(2), r_var); /* (the flag's meaning: the variance at least doubled) */
+        v->flags |= ATT_FLAG_ACCEL_DEWEIGHTED;
+    }
     var0[0] = att_cov_var(&v->cov, ATT_PHI);
     var0[1] = att_cov_var(&v->cov, ATT_THETA);
     st = accel_fuse(v, s, a, a_norm, r_var, att_sensor_gate(v, s, ATT_SENSOR_ACCEL, s->accel_gate),

@@ -4,6 +4,8 @@
  */
 #include "att_align.h"
 
+#include "att_accel.h"
+
 #include <stddef.h>
 
 #include "att_gen.h"
@@ -103,6 +105,11 @@ ekf_status_t att_stage_align_sample(att_vars_t *v, const att_settings_t *s, cons
     ekf_scalar_t acc[3], mag[3];
     ekf_scalar_t na, nm;
     int i, use_mag;
+    if (att_accel_clipped(s, sm->accel)) {
+        /* the sensor at its range: no gravity direction to average; the next sample */
+        ekf_count(&v->diag.accel_skipped);
+        return EKF_SKIPPED;
+    }
     if ((sm->valid & ATT_HAS_MAG) != 0u) {
         for (i = 0; i < 3; ++i) {
             v->align_mag[i] = ekf_add(v->align_mag[i], sm->mag[i]);

@@ -17,6 +17,12 @@ void att_rest_reset(att_rest_t *r)
     r->at_rest = 0u;
 }
 
+void att_rest_motion(att_rest_t *r)
+{
+    r->still_time = EKF_C(0);
+    r->at_rest = 0u;
+}
+
 int att_rest_update(att_rest_t *r, const att_rest_settings_t *s, const ekf_scalar_t gyro[3],
                     const ekf_scalar_t accel[3], ekf_scalar_t dt)
 {

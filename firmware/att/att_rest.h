@@ -42,6 +42,10 @@ typedef struct {
 /* Clears the detector and the offset. */
 void att_rest_reset(att_rest_t *r);
 
+/* A sample that shows motion but has no values to average (a clipped accelerometer): not at
+ * rest, and the still time starts again. */
+void att_rest_motion(att_rest_t *r);
+
 /* One sample (finite, checked by the caller): gyro rad/s, accel m/s^2, dt s > 0.
  * Returns 1 while at rest. */
 int att_rest_update(att_rest_t *r, const att_rest_settings_t *s, const ekf_scalar_t gyro[3],

@@ -81,8 +81,8 @@ extern "C" {
     X(accel_lpf_order, U16, 2, 2, 1, 2, ANY, 0, "stages", "stages of that low-pass, 1 or 2") \
     X(accel_gate, S, 10, 10, 0, 1e6, FIN2, 1, "sigma", "accelerometer innovation gate; 0 = off") \
     X(accel_range, S, 160, 160, 1e-3, 1e6, ANY, 1, "m/s^2", \
-      "accelerometer full scale (>= gravity): a sample with a component at or beyond it is " \
-      "clipped and not fused") \
+      "accelerometer full scale (>= gravity): a sample with a component within 0.1 % of it " \
+      "or beyond is clipped: not fused, the gyroscope goes on") \
     X(accel_ref_sigma, S, 0.005, 0.005, 0, 1.5707963267948966, ANY, 1, "rad", \
       "gravity-direction error that averaging cannot remove; reported covariance only") \
     /* magnetometer */ \

@@ -29,7 +29,7 @@ class Flag(enum.IntFlag):
 
     ALIGNED = 1 << 0            #: initial attitude set
     GIMBAL_LOCK = 1 << 1        #: |pitch| > gimbal_limit: kinematics clamped, heading held
-    ACCEL_DEWEIGHTED = 1 << 2   #: last accel: linear acceleration, noise variance >= doubled
+    ACCEL_DEWEIGHTED = 1 << 2   #: last accel: linear acceleration or clipped, noise variance >= doubled
     ACCEL_REJECTED = 1 << 3     #: last accel: | |a| - g | beyond accel_reject, not fused
     MAG_DISTURBED = 1 << 4      #: last mag: norm or dip off the reference, not fused
     HEADING_HELD = 1 << 5       #: last mag: not fused because of gimbal lock

@@ -154,7 +154,7 @@ int main(int argc, char **argv)
             gyr[1] = NAN; /* a NaN gyro: the whole sample is refused */
         }
         if (i == 900) {
-            acc[2] = 500.0; /* beyond accel_range */
+            acc[2] = 500.0; /* beyond accel_range: clipped (taken at the range), not refused */
         }
         if (i == 1100) {
             mag[0] = NAN; /* partial NaN: passed to the filter, refused */

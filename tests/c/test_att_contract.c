@@ -191,7 +191,9 @@ static void stage_errors(att_ekf_t *f, const att_sample_t *good)
         const ekf_scalar_t *v = bad_vec(k, good->gyro, s->gyro_range, buf, &want);
         REFUSED(f, att_update_gyro(f, v, EKF_C(0.01)), want, CNT_REJECTED);
         v = bad_vec(k, good->accel, s->accel_range, buf, &want);
-        REFUSED(f, att_update_accel(f, v, EKF_C(0.01)), want, CNT_REJECTED);
+        if (want != EKF_ERR_RANGE) { /* (beyond the range: clipped, not refused; test_att_filter) */
+            REFUSED(f, att_update_accel(f, v, EKF_C(0.01)), want, CNT_REJECTED);
+        }
         v = bad_vec(k, good->mag, s->mag_range, buf, &want);
         REFUSED(f, att_update_mag(f, v, EKF_C(0.01)), want, CNT_REJECTED);
     }
@@ -239,6 +241,9 @@ static void step_errors(att_ekf_t *f, const att_sample_t *good)
                 memcpy(smp.gyro, bad_vec(k, good->gyro, s->gyro_range, buf, &want), sizeof buf);
             } else if (sensor == 1) {
                 memcpy(smp.accel, bad_vec(k, good->accel, s->accel_range, buf, &want), sizeof buf);
+                if (want == EKF_ERR_RANGE) {
+                    continue; /* clipped, not refused: test_att_filter */
+                }
             } else {
                 memcpy(smp.mag, bad_vec(k, good->mag, s->mag_range, buf, &want), sizeof buf);
             }

@@ -270,6 +270,107 @@ static void test_heading_capped_without_magnetometer(void)
     TEST_ASSERT_TRUE(est_error(&f, &sim) < 0.25 * DEG); /* measured 0.070 deg */
 }
 
+/* An accelerometer at its range (within ATT_ACCEL_CLIP_MARGIN of accel_range, or beyond it)
+ * is clipped: the step goes on with every sensor, nothing is refused; a reading beyond the
+ * range is taken at the range; the clipped sample is de-weighted (ATT_FLAG_ACCEL_DEWEIGHTED,
+ * variance doubled: a smaller correction than the same reading unclipped), holds the offset
+ * learning and ends a rest; a reading just inside the margin is an ordinary one. While
+ * aligning, a clipped sample is skipped. A turn of clipped samples keeps the attitude. */
+static void angles(const att_ekf_t *f, double out[3])
+{
+    int i;
+    for (i = 0; i < 3; ++i) {
+        out[i] = ekf_to_double(att_state(f)[ATT_PHI + i]);
+    }
+}
+
+static void test_clipped_accelerometer(void)
+{
+    static const double zero[3] = {0.0, 0.0, 0.0}, turn[3] = {0.0, 0.0, 1.0};
+    const double range = 2.0 * 9.81;
+    att_settings_t s = att_default_settings, wide;
+    ts_sim_cfg_t cfg;
+    ts_sim_t sim;
+    static att_ekf_t f, g, h;
+    att_sample_t smp, at_range;
+    att_step_report_t rep;
+    double a0[3], af[3], ag[3], ah[3];
+    int k;
+    s.accel_range = ekf_from_double(range);
+    wide = s;
+    wide.accel_range = EKF_C(160);
+    ts_sim_default(&cfg);
+    ts_sim_init(&sim, &cfg, 9, 0.2, -0.1, 0.5);
+    TEST_ASSERT_EQUAL_INT(EKF_OK, att_init(&f, &s));
+    /* aligning: a clipped sample is skipped, not refused and not averaged */
+    ts_sim_step(&sim, zero, NULL, &smp);
+    smp.accel[0] = ekf_from_double(-range);
+    TEST_ASSERT_EQUAL_INT(EKF_SKIPPED, att_step(&f, &smp, &rep));
+    TEST_ASSERT_EQUAL_UINT32(0u, att_diag(&f)->rejected);
+    TEST_ASSERT_EQUAL_UINT32(1u, att_diag(&f)->accel_skipped);
+    TEST_ASSERT_EQUAL_UINT16(0u, f.vars.align_count);
+    for (k = 0; k < 300; ++k) { /* 3 s at rest: aligned and at rest */
+        ts_sim_step(&sim, zero, NULL, &smp);
+        TEST_ASSERT_FALSE(ekf_status_is_error(att_step(&f, &smp, NULL)));
+    }
+    TEST_ASSERT_TRUE((att_flags(&f) & (ATT_FLAG_ALIGNED | ATT_FLAG_AT_REST)) == (ATT_FLAG_ALIGNED | ATT_FLAG_AT_REST));
+    TEST_ASSERT_TRUE(f.vars.bias.hold == EKF_C(0));
+    /* within the margin: clipped, against the same reading with a wide range */
+    ts_sim_step(&sim, zero, NULL, &smp);
+    smp.accel[1] = ekf_from_double(-range * (1.0 - 0.1 * ATT_ACCEL_CLIP_MARGIN));
+    g = f;
+    h = f;
+    TEST_ASSERT_EQUAL_INT(EKF_OK, att_set_settings(&g, &wide));
+    at_range = smp; /* (h: the prediction alone, no accelerometer) */
+    at_range.valid = (uint8_t)(at_range.valid & ~ATT_HAS_ACCEL);
+    TEST_ASSERT_FALSE(ekf_status_is_error(att_step(&h, &at_range, NULL)));
+    TEST_ASSERT_FALSE(ekf_status_is_error(att_step(&f, &smp, &rep)));
+    TEST_ASSERT_FALSE(ekf_status_is_error(att_step(&g, &smp, NULL)));
+    angles(&h, a0);
+    angles(&f, af);
+    angles(&g, ag);
+    TEST_ASSERT_TRUE(rep.predict == EKF_OK && rep.gyro == EKF_OK && !ekf_status_is_error(rep.accel));
+    TEST_ASSERT_TRUE((att_flags(&f) & (ATT_FLAG_ACCEL_DEWEIGHTED | ATT_FLAG_AT_REST)) == ATT_FLAG_ACCEL_DEWEIGHTED);
+    TEST_ASSERT_TRUE(f.vars.bias.hold > EKF_C(0) && g.vars.bias.hold == EKF_C(0));
+    TEST_ASSERT_TRUE(fabs(af[0] - a0[0]) < 0.8 * fabs(ag[0] - a0[0]));
+    TEST_ASSERT_EQUAL_UINT32(0u, att_diag(&f)->rejected);
+    /* beyond the range: the same as at the range */
+    ts_sim_step(&sim, zero, NULL, &at_range);
+    at_range.accel[2] = ekf_from_double(range);
+    smp = at_range;
+    smp.accel[2] = ekf_from_double(range * 1.5);
+    g = f;
+    TEST_ASSERT_FALSE(ekf_status_is_error(att_step(&f, &smp, NULL)));
+    TEST_ASSERT_FALSE(ekf_status_is_error(att_step(&g, &at_range, NULL)));
+    angles(&f, af);
+    angles(&g, ag);
+    TEST_ASSERT_TRUE(af[0] == ag[0] && af[1] == ag[1] && af[2] == ag[2]);
+    TEST_ASSERT_TRUE(f.vars.accel_lp1[2] == g.vars.accel_lp1[2]); /* (what the low-pass took) */
+    /* just inside the margin: an ordinary reading, as with a wide range */
+    ts_sim_step(&sim, zero, NULL, &smp);
+    smp.accel[0] = ekf_from_double(range * (1.0 - 2.0 * ATT_ACCEL_CLIP_MARGIN));
+    g = f;
+    h = f;
+    TEST_ASSERT_EQUAL_INT(EKF_OK, att_set_settings(&h, &wide));
+    TEST_ASSERT_FALSE(ekf_status_is_error(att_step(&g, &smp, NULL)));
+    TEST_ASSERT_FALSE(ekf_status_is_error(att_step(&h, &smp, NULL)));
+    angles(&g, ag);
+    angles(&h, ah);
+    TEST_ASSERT_TRUE(ag[0] == ah[0] && ag[1] == ah[1] && ag[2] == ah[2]);
+    /* a second of turning at 1 rad/s with every accelerometer sample beyond the range: the
+     * gyroscope carries the attitude, nothing refused */
+    for (k = 0; k < 100; ++k) {
+        ts_sim_step(&sim, turn, NULL, &smp);
+        smp.accel[2] = ekf_from_double(range * 1.5);
+        TEST_ASSERT_FALSE(ekf_status_is_error(att_step(&f, &smp, NULL)));
+    }
+    printf("one second of turning with the accelerometer clipped: error %.3f deg\n", est_error(&f, &sim) / DEG);
+    TEST_ASSERT_TRUE(est_error(&f, &sim) < 0.5 * DEG);
+    smp.accel[2] = ekf_from_double(-range * 3.0); /* the single-sensor call too */
+    TEST_ASSERT_FALSE(ekf_status_is_error(att_update_accel(&f, smp.accel, EKF_C(0.01))));
+    TEST_ASSERT_EQUAL_UINT32(0u, att_diag(&f)->rejected);
+}
+
 static void test_linear_acceleration_and_mag_disturbance_flags(void)
 {
     ts_sim_cfg_t cfg;
@@ -522,7 +623,8 @@ static void test_every_bad_input_class_leaves_state_unchanged(void)
     TEST_ASSERT_EQUAL_INT(EKF_ERR_DT_TOO_LARGE, att_predict(&f, EKF_C(0.51)));
     assert_unchanged(&f, &s);
 
-    /* each sensor: NaN, +Inf, -Inf in each component; out of range; NULL */
+    /* each sensor: NaN, +Inf, -Inf in each component; out of range (gyro, mag; an accelerometer
+     * beyond its range is clipped, not refused: test_clipped_accelerometer); NULL */
     for (k = 0; k < 3; ++k) {
         memcpy(bad, good, sizeof bad);
         bad[k] = nan_v;
@@ -538,8 +640,6 @@ static void test_every_bad_input_class_leaves_state_unchanged(void)
         memcpy(bad, good, sizeof bad);
         bad[k] = EKF_C(41); /* gyro_range 40 rad/s */
         TEST_ASSERT_EQUAL_INT(EKF_ERR_RANGE, att_update_gyro(&f, bad, EKF_C(0.01)));
-        bad[k] = EKF_C(-161); /* accel_range 160 m/s^2 */
-        TEST_ASSERT_EQUAL_INT(EKF_ERR_RANGE, att_update_accel(&f, bad, EKF_C(0.01)));
         bad[k] = EKF_C(5001); /* mag_range 5000 */
         TEST_ASSERT_EQUAL_INT(EKF_ERR_RANGE, att_update_mag(&f, bad, EKF_C(0.01)));
     }
@@ -549,9 +649,9 @@ static void test_every_bad_input_class_leaves_state_unchanged(void)
     TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_step(&f, NULL, NULL));
     TEST_ASSERT_EQUAL_INT(EKF_ERR_NULL, att_step(NULL, NULL, NULL));
     assert_unchanged(&f, &s);
-    /* 5 dt + 3*(3+3+1+3) + 3 NULL sensor calls + the NULL sample; att_step(NULL...)
+    /* 5 dt + 3*(3+3+1+2) + 3 NULL sensor calls + the NULL sample; att_step(NULL...)
      * cannot count */
-    TEST_ASSERT_EQUAL_UINT32(rejected + 5u + 30u + 3u + 1u, att_diag(&f)->rejected);
+    TEST_ASSERT_EQUAL_UINT32(rejected + 5u + 27u + 3u + 1u, att_diag(&f)->rejected);
 
     /* a bad dt refuses the whole sample, state unchanged */
     {
@@ -615,6 +715,7 @@ int main(void)
     RUN_TEST(test_gimbal_lock_pass_and_recovery);
     RUN_TEST(test_remap_is_same_rotation);
     RUN_TEST(test_heading_capped_without_magnetometer);
+    RUN_TEST(test_clipped_accelerometer);
     RUN_TEST(test_linear_acceleration_and_mag_disturbance_flags);
     RUN_TEST(test_align_upside_down_roll_in_range);
     RUN_TEST(test_align_respects_variance_floor);

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from attekf import native
+from attekf.results import Flag
 
 
 def _vectors(scalar: str, tmp_path):
@@ -55,13 +56,17 @@ def test_extension_reproduces_c_vectors_bit_for_bit(scalar, tmp_path):
     # the deliberately bad samples were refused and counted, not dropped silently
     names = res.status_names
     assert names[int(res.status[700, 2])] == "EKF_ERR_NOT_FINITE"     # NaN gyro
-    assert names[int(res.status[900, 3])] == "EKF_ERR_RANGE"          # accel beyond range
     assert names[int(res.status[1100, 4])] == "EKF_ERR_NOT_FINITE"    # partial-NaN magnetometer
     assert names[int(res.status[1500, 1])] == "EKF_ERR_DT_TOO_LARGE"  # 0.6 s step
+    # an accelerometer beyond its range is clipped, not refused: taken at the range, where its
+    # norm is far beyond accel_reject, so not fused; the gyro of that sample is
+    assert names[int(res.status[900, 3])] == "EKF_SKIPPED"
+    assert names[int(res.status[900, 2])] == "EKF_OK"
+    assert res.flags[900] & Flag.ACCEL_REJECTED
     summary = res.summary()
-    assert summary["samples_refused"] == 4
+    assert summary["samples_refused"] == 3
     assert summary["mag_absent"] == 300                                # every 10th sample
-    assert res.diag["rejected"] >= 4
+    assert res.diag["rejected"] >= 3
     # and the filter still tracks the scenario (it is aligned and finite to the end)
     assert res.aligned[-1] and np.isfinite(res.state[on]).all()
 
