@@ -44,7 +44,7 @@ def test_update_per_sample_is_the_c_loop_bit_for_bit(scalar, tmp_path):
     aligned = (flags & int(attekf.Flag.ALIGNED)) != 0
     np.testing.assert_array_equal(got_q[aligned], quat[aligned])
     assert np.isnan(got_q[~aligned]).all() and (~aligned).sum() == 9   # no estimate yet
-    assert f.diag["rejected"] >= 4 and f.scalar == scalar
+    assert f.diag["rejected"] >= 3 and f.scalar == scalar   # (the vectors refuse 3 samples; 900 is clipped)
 
 
 def test_batch_is_one_filter_with_the_per_sample_api(sim_recording):
