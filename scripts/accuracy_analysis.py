@@ -10,6 +10,10 @@ here feeds a filter). The figures of docs/accuracy.md, "Findings", come from the
                                           fitted against the truth's angular rate
     scripts/accuracy_analysis.py heading  decay of a heading offset put into the estimate by a
                                           phantom gyro rotation about the vertical (ours, VQF online)
+    scripts/accuracy_analysis.py vertical 6D: the heading error's change over the motion, and the
+                                          part of it the corrections made (the turn about the
+                                          vertical between consecutive estimates that the gyro,
+                                          less the estimated offset, does not explain)
 
 Options: --data DIR (default $ATTEKF_BROAD_DIR or ../shared/data/broad), --trials LIST,
 --set NAME=VALUE (our settings), heading: --trial, --at S, --deg D.
@@ -165,9 +169,38 @@ def cmd_heading(rec, settings, at, deg):
             print(f"  t + {t:2d} s   ours {ours[k]:6.2f}   vqf-online {vqf[k]:6.2f}")
 
 
+def _vertical_corrections_deg(q, gyr, bias, dt):
+    """Cumulative turn about the vertical (earth z), deg, of q[k+1] against q[k] turned by the
+    gyro of sample k+1 less the offset: what the updates added beyond the gyro."""
+    w = gyr - (0.0 if bias is None else bias)
+    pred = M.quat_mul(q[:-1], M.quat_from_rotvec(w[1:] * dt))
+    r = M.quat_mul(q[1:], M.quat_conj(pred))
+    r = r * np.sign(r[:, :1] + 1e-300)
+    z = 2.0 * r[:, 3]  # small angle
+    z[~np.isfinite(z)] = 0.0
+    return np.degrees(np.concatenate([[0.0], np.cumsum(z)]))
+
+
+def cmd_vertical(recs, settings):
+    print("trial  6D heading error change over the motion (deg): ours, of it from corrections | VQF online, of it")
+    for rec in recs:
+        q, res = _ours(rec, settings, six_d=True)
+        qv, out = _vqf(rec, True, online=True)
+        row = []
+        for qq, b in ((q, res.gyro_bias), (qv, out["bias"])):
+            e = M.error_quat_earth(qq, rec.quat_ref)
+            a = 2.0 * np.arctan2(e[:, 3], e[:, 0])
+            a[~np.isfinite(a)] = 0.0
+            head = np.degrees(np.unwrap(a))
+            corr = _vertical_corrections_deg(qq, rec.gyr, b, 1.0 / rec.rate_hz)
+            idx = np.nonzero(rec.movement.astype(bool))[0]
+            row += [head[idx[-1]] - head[idx[0]], corr[idx[-1]] - corr[idx[0]]]
+        print(f"{rec.name[:2]}     {row[0]:7.2f} {row[1]:7.2f} | {row[2]:7.2f} {row[3]:7.2f}")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("what", choices=("bias", "gravity", "scale", "heading"))
+    ap.add_argument("what", choices=("bias", "gravity", "scale", "heading", "vertical"))
     ap.add_argument("--data", default=os.environ.get("ATTEKF_BROAD_DIR", os.path.join(ROOT, "..", "shared", "data", "broad")))
     ap.add_argument("--trials")
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE")
@@ -180,7 +213,7 @@ def main():
         cmd_heading(B.read_recording(B.find_trials(args.data, args.trial)[0]), settings, args.at, args.deg)
         return 0
     recs = [B.read_recording(p) for p in B.find_trials(args.data, args.trials)]
-    {"bias": cmd_bias, "gravity": cmd_gravity, "scale": cmd_scale}[args.what](recs, settings)
+    {"bias": cmd_bias, "gravity": cmd_gravity, "scale": cmd_scale, "vertical": cmd_vertical}[args.what](recs, settings)
     return 0
 
 
